@@ -1,0 +1,80 @@
+"""Rigid transforms: the one place where pose conventions are converted.
+
+Poses in scenario files are ``(x, y, z, heading, pitch, roll)``: metres and degrees, with the
+rotation ``R = Rz(heading) @ Rx(pitch) @ Ry(roll)`` (column vectors, right-handed elementary
+rotations). This is the convention of the paper's engine (Panda3D's HPR), kept so that the
+authors' numbers carry over unchanged: heading turns about +Z, pitch about +X, roll about +Y,
+and a positive roll sends +X towards -Z.
+
+Inside rgmcad a pose is a ``(4, 4) float`` homogeneous matrix. pybullet wants positions and
+``(x, y, z, w)`` quaternions; :func:`to_pybullet` and :func:`from_pybullet` are the only
+conversions.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+POSE_KEYS = ("x", "y", "z", "heading", "pitch", "roll")
+"""Names of the six pose components, in design-vector order."""
+
+ANGLE_KEYS = frozenset(("heading", "pitch", "roll"))
+
+
+def rotation_hpr(heading_deg: float, pitch_deg: float, roll_deg: float) -> np.ndarray:
+    """(3, 3) rotation ``Rz(h) @ Rx(p) @ Ry(r)`` from angles in degrees."""
+    return Rotation.from_euler("ZXY", [heading_deg, pitch_deg, roll_deg], degrees=True).as_matrix()
+
+
+def hpr_of(rotation: np.ndarray) -> np.ndarray:
+    """(3,) heading, pitch, roll in degrees of a (3, 3) rotation (inverse of rotation_hpr)."""
+    return Rotation.from_matrix(rotation).as_euler("ZXY", degrees=True)
+
+
+def pose_matrix(pose6) -> np.ndarray:
+    """(4, 4) matrix of a pose ``(x, y, z, heading, pitch, roll)`` in metres and degrees."""
+    x, y, z, h, p, r = (float(v) for v in pose6)
+    m = np.eye(4)
+    m[:3, :3] = rotation_hpr(h, p, r)
+    m[:3, 3] = (x, y, z)
+    return m
+
+
+def pose6_of(matrix: np.ndarray) -> np.ndarray:
+    """(6,) ``(x, y, z, heading, pitch, roll)`` of a (4, 4) rigid transform."""
+    return np.concatenate([matrix[:3, 3], hpr_of(matrix[:3, :3])])
+
+
+def translation(offset) -> np.ndarray:
+    m = np.eye(4)
+    m[:3, 3] = offset
+    return m
+
+
+def invert(matrix: np.ndarray) -> np.ndarray:
+    """Inverse of a (4, 4) rigid transform."""
+    out = np.eye(4)
+    rt = matrix[:3, :3].T
+    out[:3, :3] = rt
+    out[:3, 3] = -rt @ matrix[:3, 3]
+    return out
+
+
+def to_pybullet(matrix: np.ndarray) -> tuple[list[float], list[float]]:
+    """Position and (x, y, z, w) quaternion of a (4, 4) rigid transform, for pybullet."""
+    quat = Rotation.from_matrix(matrix[:3, :3]).as_quat()  # scipy is (x, y, z, w) too
+    return matrix[:3, 3].tolist(), quat.tolist()
+
+
+def from_pybullet(position, quaternion) -> np.ndarray:
+    """(4, 4) rigid transform from a pybullet position and (x, y, z, w) quaternion."""
+    m = np.eye(4)
+    m[:3, :3] = Rotation.from_quat(quaternion).as_matrix()
+    m[:3, 3] = position
+    return m
+
+
+def transform_points(matrix: np.ndarray, points: np.ndarray) -> np.ndarray:
+    """Apply a (4, 4) transform to (n, 3) points."""
+    return points @ matrix[:3, :3].T + matrix[:3, 3]

@@ -1,0 +1,289 @@
+"""What a part family is, and the registry of the families found in a ``parts/`` folder.
+
+A part family is one Python file in ``parts/`` that defines ``FAMILY = Family(...)``:
+typed parameters (a frozen dataclass, SI units), a pure ``build`` that returns the CadQuery
+solid, and how physics sees the part: its collision pieces and the joints it brings. Adding a
+family is adding a file; nothing in ``rgmcad/`` changes.
+
+Family files must import CadQuery inside ``build`` only: simulation imports family files to
+read parameters and collision pieces, and must not pay CadQuery's start-up cost.
+
+A part is made of one or more rigid *bodies*. The main body has the key ``""`` and carries the
+object's physical properties; other bodies (a lever's axle) are always static and are named
+``<object>.<key>`` in a scene.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import importlib.util
+import inspect
+import sys
+import typing
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from rgmcad.errors import ScenarioError
+
+MAIN = ""
+"""Key of a part's main body."""
+
+
+# --- collision pieces -------------------------------------------------------------------------
+# Each piece is convex and sits at ``frame``, a (4, 4) transform in the part's frame.
+
+
+def _identity() -> np.ndarray:
+    return np.eye(4)
+
+
+@dataclass(frozen=True, eq=False)
+class BoxPiece:
+    """A box of full side lengths ``size`` (3,) in metres, centred on its frame."""
+
+    size: tuple[float, float, float]
+    frame: np.ndarray = field(default_factory=_identity)
+
+
+@dataclass(frozen=True, eq=False)
+class SpherePiece:
+    radius: float
+    frame: np.ndarray = field(default_factory=_identity)
+
+
+@dataclass(frozen=True, eq=False)
+class CylinderPiece:
+    """A cylinder along its frame's Z axis, centred on its frame."""
+
+    radius: float
+    height: float
+    frame: np.ndarray = field(default_factory=_identity)
+
+
+@dataclass(frozen=True, eq=False)
+class ConvexPiece:
+    """The convex hull of ``vertices`` (n, 3), given in the piece's frame."""
+
+    vertices: np.ndarray
+    frame: np.ndarray = field(default_factory=_identity)
+
+
+@dataclass(frozen=True, eq=False)
+class PlanePiece:
+    """The infinite half-space z <= 0 of its frame (its surface has normal +Z)."""
+
+    frame: np.ndarray = field(default_factory=_identity)
+
+
+Piece = BoxPiece | SpherePiece | CylinderPiece | ConvexPiece | PlanePiece
+
+
+def piece_to_dict(piece: Piece) -> dict:
+    kind = {
+        BoxPiece: "box",
+        SpherePiece: "sphere",
+        CylinderPiece: "cylinder",
+        ConvexPiece: "convex",
+        PlanePiece: "plane",
+    }[type(piece)]
+    out: dict = {"kind": kind, "frame": np.asarray(piece.frame, float).tolist()}
+    if isinstance(piece, BoxPiece):
+        out["size"] = [float(s) for s in piece.size]
+    elif isinstance(piece, SpherePiece):
+        out["radius"] = float(piece.radius)
+    elif isinstance(piece, CylinderPiece):
+        out["radius"], out["height"] = float(piece.radius), float(piece.height)
+    elif isinstance(piece, ConvexPiece):
+        out["vertices"] = np.asarray(piece.vertices, float).tolist()
+    return out
+
+
+def piece_from_dict(data: Mapping) -> Piece:
+    frame = np.asarray(data["frame"], float)
+    kind = data["kind"]
+    if kind == "box":
+        return BoxPiece(tuple(data["size"]), frame)
+    if kind == "sphere":
+        return SpherePiece(data["radius"], frame)
+    if kind == "cylinder":
+        return CylinderPiece(data["radius"], data["height"], frame)
+    if kind == "convex":
+        return ConvexPiece(np.asarray(data["vertices"], float), frame)
+    if kind == "plane":
+        return PlanePiece(frame)
+    raise ValueError(f"unknown collision piece kind {kind!r}")
+
+
+# --- joints a part brings ---------------------------------------------------------------------
+
+
+@dataclass(frozen=True, eq=False)
+class Hinge:
+    """A revolute joint letting body ``moving`` turn about an axle fixed to body ``fixed``.
+
+    ``point`` (3,) and ``axis`` (3,) are in the part's frame (metres, unit vector).
+    """
+
+    moving: str
+    fixed: str
+    point: tuple[float, float, float]
+    axis: tuple[float, float, float]
+
+
+# --- the family -------------------------------------------------------------------------------
+
+Shape = typing.Any  # a CadQuery Shape/Workplane; not imported here on purpose
+
+
+@dataclass(frozen=True, eq=False)
+class Family:
+    """A parametric part family.
+
+    Attributes
+    ----------
+    name : registry key, used as ``part = "<name>"`` in scenario files.
+    params : frozen dataclass type of the parameters (SI units; floats unless annotated).
+    build : ``params -> Shape`` for a one-body part, or ``params -> {body_key: Shape}``.
+    collision : ``params -> [Piece]`` or ``{body_key: [Piece]}``; exact convex pieces. ``None``
+        asks the build for a convex decomposition of the mesh instead.
+    joints : ``params -> [Hinge]`` the joints between the part's own bodies.
+    volume : ``params -> float`` the analytic volume in m^3 of the main body (for tests).
+    infinite : an infinite plane: no solid, no mesh; its collision piece is a PlanePiece.
+    description : one line for ``rgmcad check`` and the docs.
+    source : the family file (filled by the loader); its text enters the build cache key.
+    """
+
+    name: str
+    params: type
+    build: Callable[[typing.Any], Shape | dict[str, Shape]] | None
+    collision: Callable[[typing.Any], Sequence[Piece] | dict[str, Sequence[Piece]]] | None
+    joints: Callable[[typing.Any], Sequence[Hinge]] = lambda params: ()
+    volume: Callable[[typing.Any], float] | None = None
+    infinite: bool = False
+    description: str = ""
+    source: Path | None = None
+
+    def param_names(self) -> tuple[str, ...]:
+        return tuple(f.name for f in dataclasses.fields(self.params))
+
+    def make_params(self, values: Mapping[str, typing.Any], *, where: str = "", key: str = ""):
+        """Typed parameters from a mapping read from a file; bad input raises ScenarioError."""
+        fields = {f.name: f for f in dataclasses.fields(self.params)}
+        unknown = sorted(set(values) - set(fields))
+        if unknown:
+            raise ScenarioError(
+                where, f"{key}.{unknown[0]}",
+                f"unknown parameter of part {self.name!r}; allowed: {', '.join(fields)}",
+            )
+        hints = typing.get_type_hints(self.params)
+        kwargs = {}
+        for name, f in fields.items():
+            if name not in values:
+                if f.default is dataclasses.MISSING and f.default_factory is dataclasses.MISSING:
+                    raise ScenarioError(
+                        where, f"{key}.{name}", f"missing parameter of part {self.name!r}"
+                    )
+                continue
+            kwargs[name] = _coerce(values[name], hints.get(name, float), where, f"{key}.{name}")
+        params = self.params(**kwargs)
+        check = getattr(params, "check", None)
+        if check is not None:
+            problem = check()
+            if problem:
+                raise ScenarioError(where, key, f"part {self.name!r}: {problem}")
+        return params
+
+    def bodies_of(self, value) -> dict:
+        """Normalise a one-body result (a shape or a piece list) to ``{body_key: value}``."""
+        return dict(value) if isinstance(value, Mapping) else {MAIN: value}
+
+    def collision_pieces(self, params) -> dict[str, list[Piece]] | None:
+        if self.collision is None:
+            return None
+        return {k: list(v) for k, v in self.bodies_of(self.collision(params)).items()}
+
+    def fixed_bodies(self, params) -> tuple[str, ...]:
+        """Body keys other than the main one: always static (axles and the like)."""
+        if self.collision is not None:
+            keys = self.bodies_of(self.collision(params)).keys()
+        else:
+            keys = (MAIN,)
+        return tuple(k for k in keys if k != MAIN)
+
+
+def _coerce(value, annotation, where: str, key: str):
+    if annotation in (float, "float"):
+        if isinstance(value, bool) or not isinstance(value, int | float):
+            raise ScenarioError(where, key, f"expected a number, got {value!r}")
+        return float(value)
+    if annotation in (int, "int"):
+        if isinstance(value, bool) or not isinstance(value, int):
+            raise ScenarioError(where, key, f"expected an integer, got {value!r}")
+        return value
+    if annotation in (bool, "bool"):
+        if not isinstance(value, bool):
+            raise ScenarioError(where, key, f"expected true or false, got {value!r}")
+        return value
+    origin = typing.get_origin(annotation)
+    if origin is tuple:
+        args = typing.get_args(annotation)
+        if not isinstance(value, list | tuple) or len(value) != len(args):
+            raise ScenarioError(where, key, f"expected a list of {len(args)} numbers")
+        return tuple(_coerce(v, a, where, key) for v, a in zip(value, args, strict=True))
+    return value
+
+
+def params_dict(params) -> dict:
+    """JSON-ready dict of a parameter dataclass."""
+    return {k: (list(v) if isinstance(v, tuple) else v) for k, v in dataclasses.asdict(params).items()}
+
+
+# --- registry ---------------------------------------------------------------------------------
+
+DEFAULT_PARTS_DIR = Path(__file__).resolve().parent.parent / "parts"
+
+
+def load_families(parts_dir: Path | None = None) -> dict[str, Family]:
+    """Import every ``*.py`` in ``parts_dir`` and return ``{name: Family}``.
+
+    Each file must define ``FAMILY``; a file without it, or two families with one name, is an
+    error naming the file.
+    """
+    parts_dir = Path(parts_dir or DEFAULT_PARTS_DIR)
+    cached = _REGISTRY_CACHE.get(parts_dir)
+    if cached is not None:
+        return cached
+    families: dict[str, Family] = {}
+    for path in sorted(parts_dir.glob("*.py")):
+        if path.name.startswith("_"):
+            continue
+        module_name = f"rgmcad_parts_{path.stem}_{_digest(str(path))[:8]}"
+        spec = importlib.util.spec_from_file_location(module_name, path)
+        module = importlib.util.module_from_spec(spec)
+        sys.modules[module_name] = module  # dataclasses need the module registered
+        spec.loader.exec_module(module)
+        family = getattr(module, "FAMILY", None)
+        if not isinstance(family, Family):
+            raise ScenarioError(str(path), "FAMILY", "a part file must define FAMILY = Family(...)")
+        if family.name in families:
+            raise ScenarioError(str(path), "FAMILY.name", f"family {family.name!r} defined twice")
+        families[family.name] = dataclasses.replace(family, source=path)
+    _REGISTRY_CACHE[parts_dir] = families
+    return families
+
+
+_REGISTRY_CACHE: dict[Path, dict[str, Family]] = {}
+
+
+def family_digest(family: Family) -> str:
+    """Hash of the family's source file: part of every build cache key."""
+    text = family.source.read_text() if family.source else inspect.getsource(family.build)
+    return _digest(text)
+
+
+def _digest(text: str) -> str:
+    return hashlib.sha256(text.encode()).hexdigest()
