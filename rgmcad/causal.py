@@ -1,0 +1,102 @@
+"""The causal graph at run time: events sleep, wake, succeed or fail as the simulation runs.
+
+* Every event starts asleep. The root wakes at t = 0; any other event wakes when all its
+  parents have succeeded (``join = "all"``, the default) or when any has (``join = "any"``).
+  A child can wake and succeed in the same step as its parent.
+* An awake event succeeds when its condition holds (for ``hold`` seconds in a row, if given),
+  and fails when it has been awake for more than its timeout (2 s by default) without that.
+  Success and failure are final.
+* The graph is *resolved* when no event is awake: nothing can change any more. The
+  simulation stops there. The outcome is a success when every leaf event (one with no
+  children) succeeded. With all-joins this means every event succeeded; with an any-join, a
+  failed alternative does not fail the graph when another parent carried the chain on.
+
+The paper's code declared failure as soon as no event was awake and one had failed; that
+cannot express alternatives, which its authors listed as future work.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping
+
+from rgmcad.scenario import EventSpec
+
+ASLEEP, AWAKE, SUCCESS, FAILURE = "asleep", "awake", "success", "failure"
+
+
+class CausalGraph:
+    """Run-time states of a scenario's events.
+
+    Parameters
+    ----------
+    events : the scenario's event specs (a DAG with one root), in any order.
+    conditions : the condition of each event (see :mod:`rgmcad.events`).
+    default_timeout : seconds an event may stay awake (when its spec gives none).
+    """
+
+    def __init__(self, events: Mapping[str, EventSpec],
+                 conditions: Mapping[str, Callable[[], bool]], default_timeout: float):
+        self.specs = dict(events)
+        self.conditions = dict(conditions)
+        self.children: dict[str, list[str]] = {n: [] for n in events}
+        for name, spec in events.items():
+            for parent in spec.after:
+                self.children[parent].append(name)
+        self.timeouts = {n: (s.timeout if s.timeout is not None else default_timeout)
+                         for n, s in events.items()}
+        self.state = dict.fromkeys(events, ASLEEP)
+        self.time: dict[str, float | None] = dict.fromkeys(events)  # of success or failure
+        self.woke: dict[str, float] = {}
+        self._true_since: dict[str, float] = {}
+        self.awake: list[str] = []
+        self.root = next(n for n, s in events.items() if not s.after)
+        self.started = False
+
+    @property
+    def resolved(self) -> bool:
+        return self.started and not self.awake
+
+    def update(self, t: float) -> bool:
+        """Evaluate the awake events at time ``t`` (s). Returns True once resolved."""
+        if not self.started:
+            self.started = True
+            self._wake(self.root, t)
+        # iterate over a snapshot; events woken during the sweep are evaluated when they wake
+        for name in list(self.awake):
+            if self.state[name] == AWAKE:
+                self._evaluate(name, t)
+        return not self.awake
+
+    def _wake(self, name: str, t: float) -> None:
+        self.state[name] = AWAKE
+        self.woke[name] = t
+        self.awake.append(name)
+        self._evaluate(name, t)
+
+    def _evaluate(self, name: str, t: float) -> None:
+        if self.conditions[name]():
+            hold = self.specs[name].hold
+            since = self._true_since.setdefault(name, t)
+            if t - since >= hold:
+                self._finish(name, SUCCESS, t)
+                for child in self.children[name]:
+                    if self.state[child] == ASLEEP and self._ready(child):
+                        self._wake(child, t)
+                return
+        else:
+            self._true_since.pop(name, None)
+        if t - self.woke[name] > self.timeouts[name]:
+            self._finish(name, FAILURE, t)
+
+    def _ready(self, name: str) -> bool:
+        parents = [self.state[p] == SUCCESS for p in self.specs[name].after]
+        return any(parents) if self.specs[name].join == "any" else all(parents)
+
+    def _finish(self, name: str, state: str, t: float) -> None:
+        self.state[name] = state
+        self.time[name] = t
+        self.awake.remove(name)
+
+    def succeeded(self) -> bool:
+        """True when every leaf event succeeded."""
+        return all(self.state[n] == SUCCESS for n, kids in self.children.items() if not kids)

@@ -1,0 +1,396 @@
+"""The pybullet view of a scene: a world built from a :class:`~rgmcad.scene.Scene`.
+
+Each process owns one DIRECT client (:func:`client`); every world resets it and rebuilds from
+scratch, because restoring a saved state does not reproduce a fresh run (stale contact
+caches). Engine workarounds, all in this module:
+
+* free bodies use maximal coordinates: pybullet's default multibodies add damping and ignore
+  continuous collision detection (CCD);
+* a hinge is a two-link multibody (fixed base = the axle or the world, revolute link = the
+  moving body) whose default velocity motor is switched off; ``createConstraint`` has no hinge
+  (bullet3 issues #2005, #4701);
+* convex mesh pieces get a 0.1 mm collision margin instead of pybullet's 1 mm, and compound
+  bodies take convex pieces from OBJ files because ``createCollisionShapeArray`` accepts no
+  raw vertices;
+* sleeping is disabled, so slow levers are never frozen;
+* inertia comes from the CAD solid (principal moments and axes), not from the collision
+  shape's bounding box.
+
+Positions and orientations are read as (4, 4) transforms of each body's *part frame*.
+"""
+
+from __future__ import annotations
+
+import atexit
+import os
+import shutil
+import tempfile
+from dataclasses import dataclass
+
+import numpy as np
+import pybullet as pb
+
+from rgmcad.geometry import from_pybullet, invert, to_pybullet
+from rgmcad.partlib import BoxPiece, ConvexPiece, CylinderPiece, Piece, PlanePiece, SpherePiece
+from rgmcad.scenario import SimulationSettings
+from rgmcad.scene import Scene, SceneBody
+
+_CLIENT: int | None = None
+
+
+def client() -> int:
+    """This process's pybullet DIRECT client, connected on first use."""
+    global _CLIENT
+    if _CLIENT is None or not pb.isConnected(_CLIENT):
+        _CLIENT = pb.connect(pb.DIRECT)
+    return _CLIENT
+
+
+@dataclass(frozen=True)
+class Handle:
+    """Where a scene body lives in pybullet: body id, link index (-1: base), and the
+    (4, 4) transform from the link's centre-of-mass frame to the part frame."""
+
+    uid: int
+    link: int
+    com_to_part: np.ndarray
+
+
+@dataclass(frozen=True)
+class _Mass:
+    mass: float
+    com: np.ndarray  # (3,) in the body frame
+    inertia: np.ndarray  # (3, 3) about com, body frame axes
+
+
+def _mass_of(bodies: list[tuple[SceneBody, np.ndarray]]) -> _Mass:
+    """Combined mass properties of bodies given with their (4, 4) pose in a common frame."""
+    total, moment = 0.0, np.zeros(3)
+    parts = []
+    for body, pose in bodies:
+        m = body.mass
+        if m <= 0:
+            continue
+        rot = pose[:3, :3]
+        com = pose[:3, :3] @ body.built.centre_of_mass + pose[:3, 3]
+        inertia = rot @ (body.built.inertia_unit * (m / body.built.volume)) @ rot.T
+        parts.append((m, com, inertia))
+        total += m
+        moment += m * com
+    com = moment / total
+    inertia = np.zeros((3, 3))
+    for m, c, i in parts:
+        d = c - com
+        inertia += i + m * (d @ d * np.eye(3) - np.outer(d, d))  # parallel axis theorem
+    return _Mass(total, com, inertia)
+
+
+def _principal(inertia: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Principal moments (3,) and a right-handed rotation (3, 3) whose columns are the axes."""
+    moments, axes = np.linalg.eigh(0.5 * (inertia + inertia.T))
+    if np.linalg.det(axes) < 0:
+        axes[:, 2] *= -1
+    return np.maximum(moments, 1e-12), axes
+
+
+class _ObjFiles:
+    """Convex pieces written once per process as OBJ files (pybullet compounds need files)."""
+
+    def __init__(self):
+        self.dir = None
+        self.files: dict[int, tuple[object, str]] = {}
+
+    def path(self, piece: ConvexPiece) -> str:
+        cached = self.files.get(id(piece))
+        if cached is not None and cached[0] is piece:
+            return cached[1]
+        if self.dir is None:
+            self.dir = tempfile.mkdtemp(prefix="rgmcad-pieces-")
+            atexit.register(shutil.rmtree, self.dir, True)
+        from scipy.spatial import ConvexHull
+
+        verts = np.asarray(piece.vertices, float)
+        hull = ConvexHull(verts)
+        path = os.path.join(self.dir, f"piece{len(self.files)}.obj")
+        with open(path, "w") as f:
+            f.write("".join(f"v {x!r} {y!r} {z!r}\n" for x, y, z in verts))
+            f.write("".join(f"f {a + 1} {b + 1} {c + 1}\n" for a, b, c in hull.simplices))
+        self.files[id(piece)] = (piece, path)
+        return path
+
+
+_OBJ = _ObjFiles()
+
+
+class World:
+    """A pybullet world built from a scene. Owns the process client while it lives.
+
+    Parameters
+    ----------
+    scene : the posed bodies and joints.
+    settings : every engine parameter (time step, solver, CCD).
+    """
+
+    def __init__(self, scene: Scene, settings: SimulationSettings):
+        self.scene = scene
+        self.settings = settings
+        self.cid = cid = client()
+        pb.resetSimulation(physicsClientId=cid)
+        pb.setGravity(0, 0, -settings.gravity, physicsClientId=cid)
+        pb.setPhysicsEngineParameter(
+            fixedTimeStep=settings.timestep,
+            numSubSteps=0,
+            numSolverIterations=settings.solver_iterations,
+            erp=settings.erp,
+            contactERP=settings.contact_erp,
+            frictionERP=settings.friction_erp,
+            useSplitImpulse=int(settings.split_impulse),
+            contactBreakingThreshold=settings.contact_breaking_threshold,
+            restitutionVelocityThreshold=settings.restitution_velocity_threshold,
+            enableConeFriction=0,
+            deterministicOverlappingPairs=1,
+            enableSAT=0,
+            enableFileCaching=1,
+            physicsClientId=cid,
+        )
+        self.handles: dict[str, Handle] = {}
+        self._build()
+        self.time = 0.0
+
+    # -- construction ----------------------------------------------------------------------
+
+    def _shape(self, pieces: list[tuple[Piece, np.ndarray]]) -> int:
+        """A collision shape from pieces given with their (4, 4) frame in the shape frame."""
+        cid = self.cid
+        if len(pieces) == 1:
+            piece, frame = pieces[0]
+            pos, orn = to_pybullet(frame)
+            common = dict(collisionFramePosition=pos, collisionFrameOrientation=orn,
+                          physicsClientId=cid)
+            if isinstance(piece, BoxPiece):
+                return pb.createCollisionShape(pb.GEOM_BOX, halfExtents=[s / 2 for s in piece.size],
+                                               **common)
+            if isinstance(piece, SpherePiece):
+                return pb.createCollisionShape(pb.GEOM_SPHERE, radius=piece.radius, **common)
+            if isinstance(piece, CylinderPiece):
+                return pb.createCollisionShape(pb.GEOM_CYLINDER, radius=piece.radius,
+                                               height=piece.height, **common)
+            if isinstance(piece, ConvexPiece):
+                return pb.createCollisionShape(pb.GEOM_MESH, vertices=np.asarray(
+                    piece.vertices, float).tolist(), **common)
+            if isinstance(piece, PlanePiece):
+                return pb.createCollisionShape(pb.GEOM_PLANE, planeNormal=[0, 0, 1], **common)
+        types, radii, halves, lengths, files, positions, orientations = [], [], [], [], [], [], []
+        for piece, frame in pieces:
+            pos, orn = to_pybullet(frame)
+            positions.append(pos)
+            orientations.append(orn)
+            radius, half, length, file = 0.0, [0.0, 0.0, 0.0], 0.0, ""
+            if isinstance(piece, BoxPiece):
+                types.append(pb.GEOM_BOX)
+                half = [s / 2 for s in piece.size]
+            elif isinstance(piece, SpherePiece):
+                types.append(pb.GEOM_SPHERE)
+                radius = piece.radius
+            elif isinstance(piece, CylinderPiece):
+                types.append(pb.GEOM_CYLINDER)
+                radius, length = piece.radius, piece.height
+            elif isinstance(piece, ConvexPiece):
+                types.append(pb.GEOM_MESH)
+                file = _OBJ.path(piece)
+            else:
+                raise ValueError("a plane cannot be part of a compound body")
+            radii.append(radius)
+            halves.append(half)
+            lengths.append(length)
+            files.append(file)
+        return pb.createCollisionShapeArray(
+            types, radii=radii, halfExtents=halves, lengths=lengths, fileNames=files,
+            meshScales=[[1, 1, 1]] * len(types), collisionFramePositions=positions,
+            collisionFrameOrientations=orientations, physicsClientId=cid)
+
+    def _build(self):
+        scene, cid = self.scene, self.cid
+        welded = {name: group for group in scene.welds for name in group}
+        hinged = {h.moving: h for h in scene.hinges}
+        hinge_bases = {h.fixed for h in scene.hinges if h.fixed is not None}
+        done: set[str] = set()
+        for name, body in scene.bodies.items():
+            if name in done:
+                continue
+            group = welded.get(name, (name,))
+            members = [scene.bodies[n] for n in group]
+            done.update(group)
+            moving_hinge = next((hinged[n] for n in group if n in hinged), None)
+            if moving_hinge is not None:
+                self._build_hinged(members, moving_hinge)
+            elif any(n in hinge_bases for n in group):
+                continue  # built with the hinge that uses it as its base
+            else:
+                self._build_free(members)
+        for h in scene.hinges:
+            if h.fixed is not None and h.fixed not in self.handles:
+                raise ValueError(f"hinge base {h.fixed!r} was not built")
+
+    def _group_frame(self, members: list[SceneBody]) -> np.ndarray:
+        return members[0].pose
+
+    def _pieces_in(self, members: list[SceneBody], frame: np.ndarray):
+        inv = invert(frame)
+        out = []
+        for body in members:
+            rel = inv @ body.pose
+            if body.plane:
+                out.append((PlanePiece(), rel))
+            else:
+                out.extend((piece, rel @ piece.frame) for piece in body.built.pieces)
+        return out
+
+    def _build_free(self, members: list[SceneBody]):
+        """A free rigid body (maximal coordinates), or a static one."""
+        cid = self.cid
+        frame = self._group_frame(members)
+        static = all(b.static for b in members)
+        shape = self._shape(self._pieces_in(members, frame))
+        if static:
+            com_frame = np.eye(4)
+            mass = 0.0
+        else:
+            props = _mass_of([(b, invert(frame) @ b.pose) for b in members if not b.static])
+            moments, axes = _principal(props.inertia)
+            com_frame = np.eye(4)
+            com_frame[:3, :3], com_frame[:3, 3] = axes, props.com
+            mass = props.mass
+        pos, orn = to_pybullet(frame)
+        ipos, iorn = to_pybullet(com_frame)
+        uid = pb.createMultiBody(
+            baseMass=mass, baseCollisionShapeIndex=shape, basePosition=pos,
+            baseOrientation=orn, baseInertialFramePosition=ipos,
+            baseInertialFrameOrientation=iorn, useMaximalCoordinates=True, physicsClientId=cid)
+        if not static:
+            self._dynamics(uid, -1, members[0], mass, moments)
+            if self.settings.ccd:
+                radius = self._ccd_radius(members)
+                pb.changeDynamics(uid, -1, ccdSweptSphereRadius=radius,
+                                  physicsClientId=cid)
+        else:
+            self._surface(uid, -1, members[0])
+        for b in members:
+            self.handles[b.name] = Handle(uid, -1, invert(com_frame) @ invert(frame) @ b.pose)
+
+    def _build_hinged(self, members: list[SceneBody], hinge):
+        """A two-link multibody: a fixed base (the axle body, or nothing for the world)
+        and the moving body on a revolute joint."""
+        cid = self.cid
+        scene = self.scene
+        if hinge.fixed is not None:
+            base_group = next((g for g in scene.welds if hinge.fixed in g), (hinge.fixed,))
+            base_members = [scene.bodies[n] for n in base_group]
+            if not all(b.static for b in base_members):
+                raise ValueError(f"hinge {hinge.moving!r}: its base {hinge.fixed!r} must be "
+                                 "static (chains of moving bodies are not supported yet)")
+            base_frame = self._group_frame(base_members)
+            base_shape = self._shape(self._pieces_in(base_members, base_frame))
+        else:
+            base_members, base_frame, base_shape = [], np.eye(4), -1
+        # link frame: at the hinge point, axis along its local z
+        frame = self._group_frame(members)
+        axis = hinge.axis / np.linalg.norm(hinge.axis)
+        link_frame = np.eye(4)
+        link_frame[:3, :3] = frame[:3, :3]
+        link_frame[:3, 3] = hinge.point
+        local_axis = frame[:3, :3].T @ axis
+        shape = self._shape(self._pieces_in(members, link_frame))
+        props = _mass_of([(b, invert(link_frame) @ b.pose) for b in members if not b.static])
+        moments, axes = _principal(props.inertia)
+        com_frame = np.eye(4)
+        com_frame[:3, :3], com_frame[:3, 3] = axes, props.com
+        link_in_base = invert(base_frame) @ link_frame
+        bpos, born = to_pybullet(base_frame)
+        lpos, lorn = to_pybullet(link_in_base)
+        ipos, iorn = to_pybullet(com_frame)
+        uid = pb.createMultiBody(
+            baseMass=0.0, baseCollisionShapeIndex=base_shape, basePosition=bpos,
+            baseOrientation=born, linkMasses=[props.mass], linkCollisionShapeIndices=[shape],
+            linkVisualShapeIndices=[-1], linkPositions=[lpos], linkOrientations=[lorn],
+            linkInertialFramePositions=[ipos], linkInertialFrameOrientations=[iorn],
+            linkParentIndices=[0], linkJointTypes=[pb.JOINT_REVOLUTE],
+            linkJointAxis=[local_axis.tolist()], physicsClientId=cid)
+        pb.setJointMotorControl2(uid, 0, pb.VELOCITY_CONTROL, force=0, physicsClientId=cid)
+        pb.changeDynamics(uid, 0, jointDamping=0.0, physicsClientId=cid)
+        self._dynamics(uid, 0, members[0], props.mass, moments)
+        pb.changeDynamics(uid, -1, linearDamping=0, angularDamping=0, physicsClientId=cid)
+        if base_members:
+            self._surface(uid, -1, base_members[0])
+        for b in base_members:
+            self.handles[b.name] = Handle(uid, -1, invert(base_frame) @ b.pose)
+        for b in members:
+            self.handles[b.name] = Handle(uid, 0, invert(com_frame) @ invert(link_frame) @ b.pose)
+
+    def _surface(self, uid, link, body: SceneBody):
+        phys = body.physical
+        extra = {}
+        if self._has_convex(body):
+            extra["collisionMargin"] = self.settings.convex_margin
+        pb.changeDynamics(
+            uid, link, lateralFriction=phys.friction, restitution=phys.restitution,
+            rollingFriction=phys.rolling_friction, spinningFriction=phys.spinning_friction,
+            physicsClientId=self.cid, **extra)
+
+    @staticmethod
+    def _has_convex(body: SceneBody) -> bool:
+        return body.built is not None and any(isinstance(p, ConvexPiece) for p in body.built.pieces)
+
+    def _dynamics(self, uid, link, body: SceneBody, mass: float, moments):
+        self._surface(uid, link, body)
+        phys = body.physical
+        # the mass must be passed again: changing only the inertia of a maximal-coordinates
+        # body zeroes its mass (pybullet 3.2.7)
+        pb.changeDynamics(
+            uid, link, mass=mass, linearDamping=phys.linear_damping,
+            angularDamping=phys.angular_damping, localInertiaDiagonal=moments.tolist(),
+            activationState=pb.ACTIVATION_STATE_DISABLE_SLEEPING, physicsClientId=self.cid)
+
+    @staticmethod
+    def _ccd_radius(members: list[SceneBody]) -> float:
+        """Swept-sphere radius: a bit under half the body's thinnest extent."""
+        extents = [np.ptp(np.asarray(b.built.bbox), axis=0).min() for b in members if b.built]
+        return 0.4 * float(min(extents))
+
+    # -- state -------------------------------------------------------------------------------
+
+    def step(self) -> None:
+        pb.stepSimulation(physicsClientId=self.cid)
+        self.time += self.settings.timestep
+
+    def _com_state(self, h: Handle, velocity: bool = False):
+        if h.link < 0:
+            pos, orn = pb.getBasePositionAndOrientation(h.uid, physicsClientId=self.cid)
+            if velocity:
+                return pos, orn, *pb.getBaseVelocity(h.uid, physicsClientId=self.cid)
+            return pos, orn
+        state = pb.getLinkState(h.uid, h.link, computeLinkVelocity=int(velocity),
+                                physicsClientId=self.cid)
+        if velocity:
+            return state[0], state[1], state[6], state[7]
+        return state[0], state[1]
+
+    def pose(self, name: str) -> np.ndarray:
+        """(4, 4) world transform of the body's part frame."""
+        h = self.handles[name]
+        pos, orn = self._com_state(h)
+        return from_pybullet(pos, orn) @ h.com_to_part
+
+    def velocity(self, name: str) -> tuple[np.ndarray, np.ndarray]:
+        """Linear velocity (3,) m/s of the body's rigid body's centre of mass, angular (3,) rad/s."""
+        h = self.handles[name]
+        _, _, lin, ang = self._com_state(h, velocity=True)
+        return np.asarray(lin), np.asarray(ang)
+
+    def touching(self, a: str, b: str, tolerance: float) -> bool:
+        """True when bodies ``a`` and ``b`` are within ``tolerance`` metres of each other."""
+        ha, hb = self.handles[a], self.handles[b]
+        if ha.uid == hb.uid:
+            return True  # welded or hinged together
+        return bool(pb.getClosestPoints(ha.uid, hb.uid, tolerance, ha.link, hb.link,
+                                        physicsClientId=self.cid))

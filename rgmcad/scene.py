@@ -1,0 +1,156 @@
+"""A scene: one layout of a scenario, resolved to posed rigid bodies and joints (pure data).
+
+Validity and physics are both built from a :class:`Scene`; neither reads the scenario again.
+Welded objects are merged into one rigid body here (an exact weld, with no solver
+compliance); hinges stay joints.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from rgmcad.build import DEFAULT_BUILD_DIR, BuiltBody, BuiltPart, load_part
+from rgmcad.design_space import world_poses
+from rgmcad.geometry import invert, transform_points
+from rgmcad.partlib import MAIN
+from rgmcad.scenario import FRAME, Physical, Scenario
+
+
+@dataclass(frozen=True, eq=False)
+class SceneBody:
+    """One body of one object (an object may bring several: a lever and its axle).
+
+    ``pose`` is the (4, 4) world transform of the part's frame; ``built`` holds its mesh, mass
+    properties and collision pieces in that frame (None for an infinite plane).
+    """
+
+    name: str
+    object: str
+    built: BuiltBody | None
+    pose: np.ndarray
+    physical: Physical
+    static: bool
+
+    @property
+    def plane(self) -> bool:
+        return self.built is None
+
+    @property
+    def mass(self) -> float:
+        """kg; 0 for static bodies."""
+        if self.static:
+            return 0.0
+        if self.physical.mass is not None:
+            return self.physical.mass
+        return self.physical.density * self.built.volume
+
+    def world_vertices(self) -> np.ndarray:
+        return transform_points(self.pose, self.built.vertices)
+
+
+@dataclass(frozen=True, eq=False)
+class Hinge:
+    """Body ``moving`` turns about ``axis`` (3,) through ``point`` (3,), world coordinates,
+    relative to body ``fixed`` (None: the world)."""
+
+    moving: str
+    fixed: str | None
+    point: np.ndarray
+    axis: np.ndarray
+
+
+@dataclass(frozen=True, eq=False)
+class Scene:
+    bodies: dict[str, SceneBody]
+    hinges: tuple[Hinge, ...]
+    welds: tuple[tuple[str, ...], ...]  # groups of bodies that move as one
+    values: np.ndarray  # the real parameter values that made it
+
+    def jointed_pairs(self) -> set[frozenset[str]]:
+        """Pairs of bodies that never collide with each other (joined by a joint)."""
+        pairs = {frozenset((h.moving, h.fixed)) for h in self.hinges if h.fixed is not None}
+        for group in self.welds:
+            pairs.update(frozenset((a, b)) for a in group for b in group if a != b)
+        return pairs
+
+
+def load_parts(scenario: Scenario, build_dir: Path = DEFAULT_BUILD_DIR) -> dict[str, BuiltPart]:
+    """The built part of every object that is a part, keyed by object name (shared instances)."""
+    out = {}
+    for obj in scenario.body_objects():
+        out[obj.name] = load_part(scenario.family(obj), obj.params, build_dir)
+    return out
+
+
+def make_scene(scenario: Scenario, values, parts: Mapping[str, BuiltPart]) -> Scene:
+    """Resolve the layout with real parameter ``values`` (d,) into posed bodies and joints."""
+    poses = world_poses(scenario, values)
+    bodies: dict[str, SceneBody] = {}
+    hinges: list[Hinge] = []
+    for obj in scenario.objects.values():
+        if obj.part == FRAME:
+            continue
+        part = parts[obj.name]
+        pose = poses[obj.name]
+        if part.infinite:
+            bodies[obj.name] = SceneBody(obj.name, obj.name, None, pose, obj.physical, True)
+            continue
+        for key, built in part.bodies.items():
+            name = obj.name if key == MAIN else f"{obj.name}.{key}"
+            static = obj.physical.static or key != MAIN
+            physical = obj.physical if key == MAIN else Physical()
+            bodies[name] = SceneBody(name, obj.name, built, pose, physical, static)
+        for joint in part.joints:
+            hinges.append(Hinge(
+                moving=_sub(obj.name, joint.moving), fixed=_sub(obj.name, joint.fixed),
+                point=transform_points(pose, np.asarray([joint.point], float))[0],
+                axis=pose[:3, :3] @ np.asarray(joint.axis, float),
+            ))
+    welds = _weld_groups(scenario)
+    for joint in scenario.joints:
+        if joint.kind == "hinge":
+            moving = joint.objects[0]
+            fixed = joint.objects[1] if len(joint.objects) > 1 else None
+            pose = bodies[moving].pose
+            axis = np.asarray(joint.axis, float)
+            hinges.append(Hinge(moving, fixed,
+                                transform_points(pose, np.asarray([joint.point], float))[0],
+                                pose[:3, :3] @ (axis / np.linalg.norm(axis))))
+    return Scene(bodies, tuple(hinges), welds, np.asarray(values, float))
+
+
+def _sub(obj: str, key: str) -> str:
+    return obj if key == MAIN else f"{obj}.{key}"
+
+
+def _weld_groups(scenario: Scenario) -> tuple[tuple[str, ...], ...]:
+    """Connected components of the weld joints, in file order."""
+    parent: dict[str, str] = {}
+
+    def find(x):
+        while parent.get(x, x) != x:
+            x = parent[x]
+        return x
+
+    for joint in scenario.joints:
+        if joint.kind == "weld":
+            a, b = (find(n) for n in joint.objects)
+            if a != b:
+                parent[b] = a
+    groups: dict[str, list[str]] = {}
+    for name in parent:
+        groups.setdefault(find(name), [])
+    for name in list(parent) + list(groups):
+        root = find(name)
+        if name not in groups[root]:
+            groups[root].append(name)
+    return tuple(tuple(g) for g in groups.values())
+
+
+def relative_pose(scene: Scene, body: str, reference: str) -> np.ndarray:
+    """(4, 4) pose of ``body`` in the frame of ``reference`` at the start."""
+    return invert(scene.bodies[reference].pose) @ scene.bodies[body].pose

@@ -1,0 +1,123 @@
+"""One simulation of one layout, watched by the causal graph; the result is a value.
+
+A layout whose bodies intersect at the start is ``invalid`` and is not simulated. Otherwise
+the world is built, and at every ``t = i * dt`` the awake events are evaluated before the
+physics step; the run stops as soon as the causal graph is resolved, or at the scenario's
+maximum duration (events still awake then are left ``awake`` and the outcome is a failure).
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
+from enum import Enum
+
+import numpy as np
+
+from rgmcad.build import BuiltPart
+from rgmcad.causal import SUCCESS, CausalGraph
+from rgmcad.events import make_condition
+from rgmcad.physics import World
+from rgmcad.scenario import Scenario
+from rgmcad.scene import make_scene
+from rgmcad.validity import TOLERANCE, Validity, check_validity
+
+
+class Outcome(str, Enum):
+    SUCCESS = "success"
+    FAILURE = "failure"
+    INVALID = "invalid"
+
+
+@dataclass(frozen=True)
+class EventRecord:
+    name: str
+    state: str  # asleep | awake | success | failure
+    time: float | None  # s, when it succeeded or failed
+
+
+@dataclass(frozen=True)
+class SimulationResult:
+    outcome: Outcome
+    events: tuple[EventRecord, ...]  # in the scenario's event order
+    sim_time: float  # simulated seconds
+    wall_time: float  # seconds, validity test included
+    step_time: float = 0.0  # seconds spent inside the physics steps
+    validity: Validity | None = None
+
+    @property
+    def n_success(self) -> int:
+        return sum(e.state == SUCCESS for e in self.events)
+
+    def labels(self) -> dict[str, bool | None]:
+        """Per event: True success, False failure, None never resolved."""
+        return {e.name: {"success": True, "failure": False}.get(e.state) for e in self.events}
+
+    def to_dict(self) -> dict:
+        out = {
+            "outcome": self.outcome.value,
+            "events": [{"name": e.name, "state": e.state, "time": e.time} for e in self.events],
+            "successful_events": self.n_success,
+            "sim_time": self.sim_time,
+            "wall_time": self.wall_time,
+        }
+        if self.validity is not None and not self.validity.valid:
+            out["overlaps"] = [{"first": o.first, "second": o.second, "depth": o.depth}
+                               for o in self.validity.overlaps]
+        return out
+
+
+Observer = Callable[[World, float], None]
+
+
+def simulate(scenario: Scenario, values, parts: Mapping[str, BuiltPart], *,
+             check: bool = True, tolerance: float = TOLERANCE,
+             observer: Observer | None = None, observe_every: int = 1) -> SimulationResult:
+    """Simulate the layout with real parameter ``values`` (d,).
+
+    Parameters
+    ----------
+    parts : built parts by object name (:func:`rgmcad.scene.load_parts`).
+    check : run the validity test first (an invalid layout is not simulated).
+    observer : called as ``observer(world, t)`` every ``observe_every`` steps and at the end
+        (for rendering; leave None for speed).
+    """
+    start = time.perf_counter()
+    scene = make_scene(scenario, np.asarray(values, float), parts)
+    validity = None
+    if check:
+        validity = check_validity(scene, tolerance)
+        if not validity.valid:
+            events = tuple(EventRecord(n, "asleep", None) for n in scenario.events)
+            return SimulationResult(Outcome.INVALID, events, 0.0,
+                                    time.perf_counter() - start, 0.0, validity)
+    settings = scenario.settings
+    world = World(scene, settings)
+    graph = CausalGraph(
+        scenario.events,
+        {name: make_condition(spec, world) for name, spec in scenario.events.items()},
+        settings.event_timeout,
+    )
+    dt = settings.timestep
+    n_steps = int(round(settings.duration / dt))
+    step_time = 0.0
+    t = 0.0
+    clock = time.perf_counter
+    step = world.step
+    for i in range(n_steps + 1):
+        t = i * dt
+        if graph.update(t):
+            break
+        if observer is not None and i % observe_every == 0:
+            observer(world, t)
+        if i == n_steps:
+            break
+        t0 = clock()
+        step()
+        step_time += clock() - t0
+    if observer is not None:
+        observer(world, t)
+    outcome = Outcome.SUCCESS if graph.resolved and graph.succeeded() else Outcome.FAILURE
+    events = tuple(EventRecord(n, graph.state[n], graph.time[n]) for n in scenario.events)
+    return SimulationResult(outcome, events, t, clock() - start, step_time, validity)
