@@ -1,4 +1,7 @@
-"""Ball: a solid sphere (marble, steel ball, ping-pong ball filled or not)."""
+"""Ball: a solid sphere (marble, steel ball, ping-pong ball filled or not).
+
+Frame: the origin is the centre of the sphere.
+"""
 
 import math
 from dataclasses import dataclass
@@ -12,6 +15,9 @@ class Params:
 
     def check(self):
         return None if self.radius > 0 else "radius must be > 0"
+
+
+EXAMPLE = Params(radius=0.01)
 
 
 def build(p: Params):

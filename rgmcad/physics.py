@@ -113,7 +113,7 @@ class _ObjFiles:
         hull = ConvexHull(verts)
         path = os.path.join(self.dir, f"piece{len(self.files)}.obj")
         with open(path, "w") as f:
-            f.write("".join(f"v {x!r} {y!r} {z!r}\n" for x, y, z in verts))
+            f.write("".join(f"v {x:.17g} {y:.17g} {z:.17g}\n" for x, y, z in verts))
             f.write("".join(f"f {a + 1} {b + 1} {c + 1}\n" for a, b, c in hull.simplices))
         self.files[id(piece)] = (piece, path)
         return path
@@ -344,12 +344,17 @@ class World:
     def _dynamics(self, uid, link, body: SceneBody, mass: float, moments):
         self._surface(uid, link, body)
         phys = body.physical
-        # the mass must be passed again: changing only the inertia of a maximal-coordinates
-        # body zeroes its mass (pybullet 3.2.7)
-        pb.changeDynamics(
-            uid, link, mass=mass, linearDamping=phys.linear_damping,
-            angularDamping=phys.angular_damping, localInertiaDiagonal=moments.tolist(),
-            activationState=pb.ACTIVATION_STATE_DISABLE_SLEEPING, physicsClientId=self.cid)
+        cid = self.cid
+        # Three separate calls, each working around a pybullet 3.2.7 quirk: changing only the
+        # inertia of a maximal-coordinates body zeroes its mass, so the mass goes with it; and
+        # a mass change in the same call as a damping change on a multibody link also gives
+        # the (fixed) base that mass, so the base starts to fall.
+        pb.changeDynamics(uid, link, linearDamping=phys.linear_damping,
+                          angularDamping=phys.angular_damping, physicsClientId=cid)
+        pb.changeDynamics(uid, link, mass=mass, localInertiaDiagonal=moments.tolist(),
+                          physicsClientId=cid)
+        pb.changeDynamics(uid, link, activationState=pb.ACTIVATION_STATE_DISABLE_SLEEPING,
+                          physicsClientId=cid)
 
     @staticmethod
     def _ccd_radius(members: list[SceneBody]) -> float:

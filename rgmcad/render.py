@@ -1,0 +1,105 @@
+"""Pictures and videos of a layout, rendered on the CPU with pybullet's TinyRenderer.
+
+Rendering is separate from simulation: it adds visual shapes (the parts' CAD meshes) to a
+world only when asked, and watches a simulation through its ``observer`` hook.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pybullet as pb
+
+from rgmcad.geometry import to_pybullet
+from rgmcad.physics import World
+from rgmcad.scene import Scene
+
+_STATIC = (0.72, 0.70, 0.66, 1.0)
+_PALETTE = [(0.85, 0.33, 0.10, 1), (0.13, 0.47, 0.71, 1), (0.17, 0.63, 0.17, 1),
+            (0.58, 0.40, 0.74, 1), (0.89, 0.47, 0.76, 1), (0.74, 0.74, 0.13, 1),
+            (0.09, 0.75, 0.81, 1), (0.55, 0.34, 0.29, 1)]
+
+
+class Renderer:
+    """Draws a world: adds a visual copy of every body's mesh and a camera that frames them.
+
+    pybullet cannot attach a visual shape to an existing body, so each body gets a massless,
+    collision-free ghost that is moved onto it before each picture.
+    """
+
+    def __init__(self, world: World, width: int = 640, height: int = 480):
+        self.world = world
+        self.width, self.height = width, height
+        self.ghosts: list[tuple[int, object]] = []
+        cid = world.cid
+        for i, (name, body) in enumerate(world.scene.bodies.items()):
+            if body.plane:
+                continue  # an infinite plane would hide the view; the background stands for it
+            h = world.handles[name]
+            color = _STATIC if body.static else _PALETTE[i % len(_PALETTE)]
+            pos, orn = to_pybullet(np.linalg.inv(h.com_to_part))  # part frame in the COM frame
+            shape = pb.createVisualShape(
+                pb.GEOM_MESH, vertices=np.asarray(body.built.vertices, float).tolist(),
+                indices=np.asarray(body.built.faces, int).ravel().tolist(), rgbaColor=color,
+                visualFramePosition=pos, visualFrameOrientation=orn, physicsClientId=cid)
+            ghost = pb.createMultiBody(0, -1, shape, physicsClientId=cid)
+            self.ghosts.append((ghost, h))
+        self._camera(world.scene)
+
+    def _camera(self, scene: Scene) -> None:
+        points = np.vstack([b.world_vertices() for b in scene.bodies.values() if not b.plane])
+        lo, hi = points.min(axis=0), points.max(axis=0)
+        centre = (lo + hi) / 2
+        radius = float(np.linalg.norm(hi - lo)) / 2
+        boards = [b for b in scene.bodies.values() if b.plane and abs(b.pose[2, 2]) < 0.5]
+        if boards:  # look at the front of a vertical board, slightly from above
+            direction = boards[0].pose[:3, 2] + np.array([0.0, 0.0, 0.15])
+        else:
+            direction = np.array([0.35, -1.0, 0.75])
+        direction = direction / np.linalg.norm(direction)
+        fov = 40.0
+        distance = radius / np.tan(np.radians(fov / 2)) * 1.05
+        eye = centre + direction * distance
+        self.view = pb.computeViewMatrix(eye.tolist(), centre.tolist(), [0, 0, 1])
+        self.projection = pb.computeProjectionMatrixFOV(
+            fov, self.width / self.height, distance / 50, distance * 4)
+
+    def image(self) -> np.ndarray:
+        """(height, width, 3) uint8 RGB picture of the world now."""
+        cid = self.world.cid
+        for ghost, h in self.ghosts:
+            if h.link < 0:
+                pos, orn = pb.getBasePositionAndOrientation(h.uid, physicsClientId=cid)
+            else:
+                pos, orn = pb.getLinkState(h.uid, h.link, physicsClientId=cid)[:2]
+            pb.resetBasePositionAndOrientation(ghost, pos, orn, physicsClientId=cid)
+        _, _, rgba, _, _ = pb.getCameraImage(
+            self.width, self.height, self.view, self.projection,
+            renderer=pb.ER_TINY_RENDERER, lightDirection=[0.4, -0.6, 1.0], shadow=0,
+            physicsClientId=cid)
+        return np.asarray(rgba, np.uint8).reshape(self.height, self.width, 4)[:, :, :3]
+
+
+def save_png(image: np.ndarray, path: Path) -> None:
+    from PIL import Image
+
+    Image.fromarray(image).save(path)
+
+
+def save_video(frames: list[np.ndarray], path: Path, fps: float) -> None:
+    """MP4 (needs imageio-ffmpeg) or, for a ``.gif`` path, an animated GIF."""
+    path = Path(path)
+    if path.suffix.lower() == ".gif":
+        from PIL import Image
+
+        images = [Image.fromarray(f) for f in frames]
+        images[0].save(path, save_all=True, append_images=images[1:],
+                       duration=int(1000 / fps), loop=0)
+        return
+    import imageio.v2 as imageio
+
+    with imageio.get_writer(path, fps=fps, codec="libx264", quality=7,
+                            macro_block_size=8) as writer:
+        for frame in frames:
+            writer.append_data(frame)
