@@ -1,0 +1,33 @@
+"""Helpers for tests: tiny scenarios written as dicts, simulated with the real engine."""
+
+from __future__ import annotations
+
+import numpy as np
+from rgmcad.design_space import values_from_mapping
+from rgmcad.scenario import parse_scenario
+from rgmcad.scene import load_parts, make_scene
+from rgmcad.simulate import simulate
+
+
+def tiny(objects: dict, events: dict, *, runs=None, joints=None, duration=2.0, **sim):
+    """A scenario from plain dicts (the TOML structure)."""
+    data = {"name": "tiny", "objects": objects, "events": events,
+            "simulation": {"duration": duration, **sim}}
+    if runs:
+        data["runs"] = runs
+    if joints:
+        data["joints"] = joints
+    return parse_scenario(data, where="<test>")
+
+
+def run(scenario, layout: str = "initial", **kwargs):
+    parts = load_parts(scenario)
+    values = values_from_mapping(scenario, scenario.layouts[layout])
+    return simulate(scenario, values, parts, **kwargs)
+
+
+def scene_of(scenario, values=None):
+    parts = load_parts(scenario)
+    if values is None:
+        values = values_from_mapping(scenario, scenario.layouts["initial"])
+    return make_scene(scenario, np.asarray(values, float), parts)
