@@ -1,0 +1,106 @@
+"""The command line: shipped scenarios, JSON output, and one-line errors with exit status 2."""
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from rgmcad.cli import main
+
+SCENARIOS = sorted(Path("scenarios").glob("*.toml"))
+
+
+@pytest.mark.parametrize("path", SCENARIOS, ids=lambda p: p.stem)
+def test_solved_layout_of_every_shipped_scenario_succeeds(path, capsys):
+    assert main(["simulate", str(path), "--layout", "solved", "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["outcome"] == "success"
+    assert {"outcome", "events", "sim_time", "wall_time"} <= set(out)
+    assert all(e["state"] == "success" for e in out["events"])
+
+
+def test_check_prints_a_summary(capsys):
+    assert main(["check", "scenarios/causality_switch.toml"]) == 0
+    out = capsys.readouterr().out
+    assert "d = 4" in out and "switch_run.y" in out and "solved: valid" in out
+
+
+def _write(tmp_path, text, name="bad.toml"):
+    path = tmp_path / name
+    path.write_text(text)
+    return str(path)
+
+
+GOOD = Path("scenarios/simple.toml").read_text()
+
+BAD_FILES = {
+    "unknown key": GOOD.replace("friction = 0.5\nrestitution = 0.2",
+                                "friction = 0.5\nbounciness = 0.2"),
+    "unknown part": GOOD.replace('part = "track"', 'part = "rail"'),
+    "unknown event type": GOOD.replace('type = "stopping"', 'type = "halting"'),
+    "event names a missing object": GOOD.replace('second = "run[0]"', 'second = "run[7]"'),
+    "cycle in the graph": GOOD.replace(
+        '[events.ball_rolls_on_track]\ntype = "rolling_on"',
+        '[events.ball_rolls_on_track]\nafter = ["last_dom_stops"]\ntype = "rolling_on"'),
+    "range min > max": GOOD.replace("z = [0.0, 0.15]", "z = [0.15, 0.0]"),
+    "not TOML": "name = [",
+}
+
+
+@pytest.mark.parametrize("case", sorted(BAD_FILES))
+def test_bad_scenario_gives_one_line_and_exit_2(case, tmp_path, capsys):
+    path = _write(tmp_path, BAD_FILES[case])
+    assert main(["check", path]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and path in err
+
+
+@pytest.mark.parametrize("args", [
+    ["simulate", "missing.toml"],
+    ["simulate", "scenarios/simple.toml", "--vector", "0.5,0.5"],
+    ["simulate", "scenarios/simple.toml", "--vector", "0.5,0.5,1.5"],
+    ["simulate", "scenarios/simple.toml", "--vector", "a,b,c"],
+    ["simulate", "scenarios/simple.toml", "--layout", "nonexistent"],
+])
+def test_bad_arguments_give_one_line_and_exit_2(args, capsys):
+    assert main(args) == 2
+    assert len(capsys.readouterr().err.strip().splitlines()) == 1
+
+
+def test_layout_file_for_another_scenario_is_refused(tmp_path, capsys):
+    path = _write(tmp_path, json.dumps({"scenario": "ballrun", "vector": [0.5] * 3}),
+                  "layout.json")
+    assert main(["simulate", "scenarios/simple.toml", "--layout", path]) == 2
+    assert "ballrun" in capsys.readouterr().err
+
+
+def test_layout_file_round_trip(tmp_path, capsys):
+    path = _write(tmp_path, json.dumps({"scenario": "simple",
+                                        "values": {"track.x": -0.1, "track.z": 0.1}}),
+                  "layout.json")
+    assert main(["simulate", "scenarios/simple.toml", "--layout", path, "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["outcome"] == "success"
+
+
+def test_same_vector_gives_identical_timeline_in_two_processes():
+    cmd = [sys.executable, "-m", "rgmcad.cli", "simulate", "scenarios/causality_switch.toml",
+           "--vector", "0.9,0.3,0.6,0.5", "--json"]
+    runs = [json.loads(subprocess.run(cmd, capture_output=True, text=True, check=True).stdout)
+            for _ in range(2)]
+    assert runs[0]["events"] == runs[1]["events"]
+    assert runs[0]["sim_time"] == runs[1]["sim_time"]
+
+
+def test_render_and_video(tmp_path):
+    png, gif = tmp_path / "a.png", tmp_path / "a.gif"
+    assert main(["render", "scenarios/simple.toml", "--out", str(png), "--width", "160",
+                 "--height", "120"]) == 0
+    assert main(["simulate", "scenarios/simple.toml", "--video", str(gif), "--width", "96",
+                 "--height", "72"]) == 0
+    from PIL import Image
+
+    image = Image.open(png)
+    assert image.size == (160, 120) and len(set(image.getdata())) > 10
+    assert Image.open(gif).n_frames > 5

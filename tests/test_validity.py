@@ -1,0 +1,64 @@
+"""Validity: touching is valid, a 0.5 mm overlap is not; static pairs count; joints excluded."""
+
+import time
+
+import numpy as np
+import pytest
+
+from _support import scene_of, tiny
+from rgmcad.validity import check_validity
+
+E = {"e": {"type": "contact", "first": "a", "second": "b"}}
+CUBE = {"part": "box", "params": {"length": 0.02, "width": 0.02, "height": 0.02}}
+
+
+def two_cubes(gap, static=False):
+    mass = {} if static else {"mass": 0.01}
+    return tiny({"a": {**CUBE, **mass, "pose": {"z": 0.5}},
+                 "b": {**CUBE, **mass, "pose": {"x": 0.02 + gap, "z": 0.5}}}, E)
+
+
+@pytest.mark.parametrize("static", [False, True])
+def test_touching_is_valid_and_half_millimetre_overlap_is_not(static):
+    assert check_validity(scene_of(two_cubes(0.0, static))).valid
+    assert check_validity(scene_of(two_cubes(1e-4, static))).valid
+    bad = check_validity(scene_of(two_cubes(-5e-4, static)))
+    assert not bad.valid
+    assert bad.overlaps[0].depth == pytest.approx(5e-4, rel=0.02)
+    assert bad.overlaps[0].volume == pytest.approx(5e-4 * 0.02 * 0.02, rel=0.02)
+
+
+def test_body_sunk_into_a_plane_is_invalid():
+    sc = tiny({"floor": {"part": "plane"},
+               "a": {"part": "ball", "params": {"radius": 0.01}, "pose": {"z": 0.0095}},
+               "b": {**CUBE, "pose": {"x": 0.1, "z": 0.01}}}, E)
+    result = check_validity(scene_of(sc))
+    assert [(o.first, o.second) for o in result.overlaps] == [("floor", "a")]
+    assert result.overlaps[0].depth == pytest.approx(5e-4, abs=5e-5)
+
+
+def test_lever_and_its_own_axle_do_not_count_but_other_bodies_do():
+    lever = {"part": "lever", "params": {"length": 0.2, "width": 0.02, "thickness": 0.005},
+             "mass": 0.02}
+    sc = tiny({"a": lever, "b": {**CUBE, "pose": {"x": 0.5}}}, E)
+    assert check_validity(scene_of(sc)).valid
+    # a second cube pushed through the axle (which sticks out of the plank) is caught
+    sc = tiny({"a": lever, "b": {**CUBE, "pose": {"y": 0.022}}}, E)
+    names = {frozenset((o.first, o.second)) for o in check_validity(scene_of(sc)).overlaps}
+    assert frozenset(("a.axle", "b")) in names
+
+
+def test_fifty_bodies_in_under_twenty_milliseconds():
+    objects = {f"c{i}": {**CUBE, "pose": {"x": 0.03 * (i % 10), "y": 0.03 * (i // 10),
+                                          "z": 0.01, "heading": 3 * i}}
+               for i in range(50)}
+    objects["c0"] = objects["c0"] | {"part": "box"}
+    sc = tiny(objects, {"e": {"type": "contact", "first": "c0", "second": "c1"}})
+    scene = scene_of(sc)
+    check_validity(scene)  # build the per-part manifolds once
+    start = time.perf_counter()
+    for _ in range(5):
+        result = check_validity(scene)
+    per_call = (time.perf_counter() - start) / 5
+    assert result.valid
+    print(f"validity, 50 bodies: {per_call * 1e3:.1f} ms")  # a figure, not an assertion
