@@ -68,11 +68,18 @@ def to_pybullet(matrix: np.ndarray) -> tuple[list[float], list[float]]:
 
 
 def from_pybullet(position, quaternion) -> np.ndarray:
-    """(4, 4) rigid transform from a pybullet position and (x, y, z, w) quaternion."""
-    m = np.eye(4)
-    m[:3, :3] = Rotation.from_quat(quaternion).as_matrix()
-    m[:3, 3] = position
-    return m
+    """(4, 4) rigid transform from a pybullet position and unit (x, y, z, w) quaternion.
+
+    Written out rather than through scipy: it runs for awake events at every step.
+    """
+    x, y, z, w = quaternion
+    px, py, pz = position
+    return np.array([
+        [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w), px],
+        [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w), py],
+        [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y), pz],
+        [0.0, 0.0, 0.0, 1.0],
+    ])
 
 
 def transform_points(matrix: np.ndarray, points: np.ndarray) -> np.ndarray:

@@ -210,12 +210,12 @@ class World:
             collisionFrameOrientations=orientations, physicsClientId=cid)
 
     def _build(self):
-        scene, cid = self.scene, self.cid
+        scene = self.scene
         welded = {name: group for group in scene.welds for name in group}
         hinged = {h.moving: h for h in scene.hinges}
         hinge_bases = {h.fixed for h in scene.hinges if h.fixed is not None}
         done: set[str] = set()
-        for name, body in scene.bodies.items():
+        for name in scene.bodies:
             if name in done:
                 continue
             group = welded.get(name, (name,))

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+
 from rgmcad.design_space import values_from_mapping
 from rgmcad.scenario import parse_scenario
 from rgmcad.scene import load_parts, make_scene

@@ -1,8 +1,8 @@
 """Every event type, in a tiny world where it must succeed and one where it must fail."""
 
 import pytest
-
 from _support import run, tiny
+
 from rgmcad.eventspec import EVENT_TYPES
 
 FLOOR = {"part": "plane"}

@@ -4,9 +4,9 @@ import math
 
 import numpy as np
 import pytest
+from _support import scene_of, tiny
 
 from rgmcad.physics import World
-from _support import scene_of, tiny
 
 G = 9.81
 NEVER = {"e": {"type": "contact", "first": "ball", "second": "floor"}}

@@ -2,10 +2,9 @@
 
 import time
 
-import numpy as np
 import pytest
-
 from _support import scene_of, tiny
+
 from rgmcad.validity import check_validity
 
 E = {"e": {"type": "contact", "first": "a", "second": "b"}}

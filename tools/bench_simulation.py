@@ -1,0 +1,74 @@
+"""Where a simulation's time goes, per shipped scenario: stepping vs everything else.
+
+Prints, for each scenario's `solved` layout (and a few Sobol layouts), the mean wall time per
+simulation, the time inside pybullet's stepSimulation, the overhead (world build, validity,
+event checks, bookkeeping) as a share of the stepping time, and simulations per second on one
+core. Also times the validity test on a 50-body scene.
+
+    uv run python tools/bench_simulation.py [--repeat 5]
+"""
+
+import argparse
+import time
+from pathlib import Path
+
+import numpy as np
+from scipy.stats import qmc
+
+from rgmcad.design_space import values_from_mapping, values_from_vector
+from rgmcad.scenario import load_scenario, parse_scenario
+from rgmcad.scene import load_parts, make_scene
+from rgmcad.simulate import simulate
+from rgmcad.validity import check_validity
+
+
+def bench_scenario(path: Path, repeat: int) -> None:
+    scenario = load_scenario(path)
+    parts = load_parts(scenario)
+    layouts = [values_from_mapping(scenario, scenario.layouts["solved"])]
+    for v in qmc.Sobol(scenario.dimension, seed=0).random(4):
+        layouts.append(values_from_vector(scenario, v))
+    simulate(scenario, layouts[0], parts)  # warm caches (OBJ pieces, manifolds)
+    wall = step = 0.0
+    n = sim = 0
+    for _ in range(repeat):
+        for values in layouts:
+            r = simulate(scenario, values, parts)
+            if r.outcome.value == "invalid":
+                continue
+            wall += r.wall_time
+            step += r.step_time
+            sim += r.sim_time
+            n += 1
+    overhead = wall - step
+    print(f"{scenario.name:18s} {n:4d} runs  {wall / n * 1e3:8.1f} ms/sim  "
+          f"step {step / n * 1e3:8.1f} ms  other {overhead / n * 1e3:7.1f} ms "
+          f"({overhead / step * 100:5.1f} % of stepping)  {n / wall:6.1f} sim/s  "
+          f"{sim / wall:6.1f}x real time")
+
+
+def bench_validity() -> None:
+    cube = {"part": "box", "params": {"length": 0.02, "width": 0.02, "height": 0.02}}
+    objects = {f"c{i}": {**cube, "pose": {"x": 0.03 * (i % 10), "y": 0.03 * (i // 10),
+                                          "z": 0.01, "heading": 3 * i}} for i in range(50)}
+    scenario = parse_scenario({"objects": objects, "events": {
+        "e": {"type": "contact", "first": "c0", "second": "c1"}}})
+    scene = make_scene(scenario, np.zeros(0), load_parts(scenario))
+    check_validity(scene)
+    start = time.perf_counter()
+    for _ in range(20):
+        check_validity(scene)
+    print(f"validity, 50 bodies: {(time.perf_counter() - start) / 20 * 1e3:.2f} ms per test")
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser()
+    parser.add_argument("--repeat", type=int, default=3)
+    args = parser.parse_args()
+    for path in sorted(Path("scenarios").glob("*.toml")):
+        bench_scenario(path, args.repeat)
+    bench_validity()
+
+
+if __name__ == "__main__":
+    main()
