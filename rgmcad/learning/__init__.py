@@ -1,0 +1,93 @@
+"""Learning the success probability of a design space and optimising a robust layout.
+
+Paper sections 5-7 ("Designing Chain Reaction Contraptions from Causal Graphs"): initial
+exploration (:func:`explore`), SVM classifiers with Platt-calibrated probabilities
+(:class:`SuccessClassifier`), active learning (:func:`learn_active`), factorisation of the
+success probability over the causal graph (:func:`fit_spd`), constrained refinement
+(:func:`maximize_robustness`) and placement tolerances (:func:`placement_tolerance`).
+:func:`learn_and_optimize` runs them all on a :class:`Problem`.
+
+Modules, in pipeline order: ``settings``, ``oracles`` (the simulator protocol and synthetic
+problems), ``sampling``, ``classifier``, ``active``, ``factorize``, ``optimize``, ``pipeline``.
+"""
+
+import logging
+
+from .active import ActiveLearningResult, learn_active, query_distribution, synthesize_queries
+from .classifier import SuccessClassifier
+from .factorize import (
+    GLOBAL_EVENT,
+    ConstantModel,
+    EventAnalysis,
+    SPDFit,
+    SPDModel,
+    analyse_event,
+    event_dataset,
+    fit_spd,
+    global_dataset,
+    select_dimensions,
+    smooth_min,
+)
+from .optimize import (
+    OptimizationResult,
+    maximize_robustness,
+    placement_offsets,
+    placement_tolerance,
+    start_point,
+)
+from .oracles import (
+    BallRegion,
+    BoxRegion,
+    Label,
+    OracleEvent,
+    Problem,
+    ProductOracle,
+    ancestors,
+    topological_events,
+)
+from .pipeline import LearningResult, Progress, learn_and_optimize
+from .sampling import Exploration, SobolStream, explore, first_valid, sample_mixture
+from .settings import LearningSettings
+
+logging.getLogger(__name__).addHandler(logging.NullHandler())
+
+__all__ = [
+    "ActiveLearningResult",
+    "BallRegion",
+    "BoxRegion",
+    "ConstantModel",
+    "EventAnalysis",
+    "Exploration",
+    "GLOBAL_EVENT",
+    "Label",
+    "LearningResult",
+    "LearningSettings",
+    "OptimizationResult",
+    "OracleEvent",
+    "Problem",
+    "ProductOracle",
+    "Progress",
+    "SPDFit",
+    "SPDModel",
+    "SobolStream",
+    "SuccessClassifier",
+    "analyse_event",
+    "ancestors",
+    "event_dataset",
+    "explore",
+    "first_valid",
+    "fit_spd",
+    "global_dataset",
+    "learn_active",
+    "learn_and_optimize",
+    "maximize_robustness",
+    "placement_offsets",
+    "placement_tolerance",
+    "query_distribution",
+    "sample_mixture",
+    "select_dimensions",
+    "smooth_min",
+    "start_point",
+    "synthesize_queries",
+    "topological_events",
+]

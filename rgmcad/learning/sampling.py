@@ -1,0 +1,276 @@
+"""Samplers of the design space and the initial exploration (paper section 5.1, Alg. 1).
+
+Every sampler draws candidates first and tests their validity in order, keeping the first
+valid ones, as the authors' ``find_physically_valid_samples`` does (SPEC section 5.1).
+Invalid layouts are never simulated.
+"""
+
+from __future__ import annotations
+
+import logging
+import warnings
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.stats import qmc
+
+from .oracles import Label, Problem
+from .settings import LearningSettings
+
+__all__ = [
+    "SobolStream",
+    "sample_mixture",
+    "first_valid",
+    "Exploration",
+    "explore",
+]
+
+logger = logging.getLogger(__name__)
+
+SimulateFn = Callable[[np.ndarray], list[Label]]
+ValidityFn = Callable[[np.ndarray], np.ndarray]
+
+
+class SobolStream:
+    """Consecutive blocks of one Sobol sequence in ``[0, 1]^d``.
+
+    Blocks are drawn in powers of two so that the sequence keeps its balance properties.
+    Unscrambled, the first point (the origin) is skipped, as sobol-seq did for the authors.
+
+    Parameters
+    ----------
+    dimension : int
+        d.
+    scramble : bool
+        Owen-scramble the sequence with ``rng`` (scipy's default and recommendation).
+    rng : numpy.random.Generator
+        Source of the scrambling.
+    """
+
+    def __init__(self, dimension: int, scramble: bool, rng: np.random.Generator):
+        seed = int(rng.integers(2**63))
+        try:
+            self._engine = qmc.Sobol(dimension, scramble=scramble, rng=seed)
+        except TypeError:  # scipy < 1.15
+            self._engine = qmc.Sobol(dimension, scramble=scramble, seed=seed)
+        self._skip_origin = not scramble
+        self._buffer = np.empty((0, dimension))
+        self.dimension = dimension
+
+    def take(self, n: int) -> np.ndarray:
+        """The next ``n`` points, (n, d)."""
+        while len(self._buffer) < n:
+            block = 2 ** int(np.ceil(np.log2(max(n - len(self._buffer) + 1, 2))))
+            block = max(block, self._engine.num_generated, 2)
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore", UserWarning)  # balance warning, see docstring
+                points = self._engine.random(block)
+            if self._skip_origin:
+                points = points[1:]
+                self._skip_origin = False
+            self._buffer = np.vstack([self._buffer, points])
+        out, self._buffer = self._buffer[:n], self._buffer[n:]
+        return out
+
+
+def sample_mixture(
+    means: np.ndarray,
+    weights: np.ndarray,
+    variances: np.ndarray | float,
+    n: int,
+    rng: np.random.Generator,
+) -> np.ndarray:
+    """Draw from a mixture of axis-aligned Gaussians and clip to ``[0, 1]^d``.
+
+    Parameters
+    ----------
+    means : (m, d) float
+        Component means.
+    weights : (m,) float
+        Non-negative component weights (normalised here; must not all be 0).
+    variances : float or (d,) or (m, d) float
+        Diagonal covariances (**variances**, not standard deviations). A zero variance keeps
+        that coordinate at the mean.
+    n : int
+        Number of samples.
+    rng : numpy.random.Generator
+
+    Returns
+    -------
+    (n, d) float
+    """
+    means = np.atleast_2d(np.asarray(means, dtype=float))
+    m, d = means.shape
+    w = np.asarray(weights, dtype=float)
+    if w.shape != (m,) or np.any(w < 0) or not w.sum() > 0:
+        raise ValueError("sample_mixture: weights must be (m,), non-negative, not all 0")
+    var = np.broadcast_to(np.asarray(variances, dtype=float), (m, d))
+    comps = rng.choice(m, size=n, p=w / w.sum())
+    X = means[comps] + rng.standard_normal((n, d)) * np.sqrt(var[comps])
+    return np.clip(X, 0.0, 1.0)
+
+
+def first_valid(
+    candidates: np.ndarray, validity: ValidityFn, n: int, chunk: int | None = None
+) -> tuple[np.ndarray, int]:
+    """The first ``n`` valid rows of ``candidates``, testing them in order by chunks.
+
+    Parameters
+    ----------
+    candidates : (m, d) float
+    validity : callable
+        ``validity(X) -> (k,) bool``.
+    n : int
+        Number of valid rows wanted.
+    chunk : int, optional
+        Rows tested per call (default ``n``); testing stops once ``n`` valid rows are found.
+
+    Returns
+    -------
+    valid_rows : (<= n, d) float
+        Fewer than ``n`` rows if the candidates ran out.
+    n_tested : int
+        Number of candidates whose validity was tested.
+    """
+    chunk = max(1, int(chunk or n))
+    kept: list[np.ndarray] = []
+    n_kept = 0
+    start = 0
+    while n_kept < n and start < len(candidates):
+        block = candidates[start : start + max(chunk, n - n_kept)]
+        ok = np.asarray(validity(block), dtype=bool)
+        rows = block[ok][: n - n_kept]
+        kept.append(rows)
+        n_kept += len(rows)
+        start += len(block)
+    out = np.vstack(kept) if kept else np.empty((0, candidates.shape[1]))
+    return out, start
+
+
+@dataclass(frozen=True)
+class Exploration:
+    """Result of :func:`explore`.
+
+    Attributes
+    ----------
+    X : (n, d) float
+        Simulated samples, in simulation order (the first ``n_initial`` are Sobol points).
+    labels : tuple of Label
+        Their labels.
+    n_iterations : int
+        Adaptive iterations run after the Sobol batch.
+    n_validity_tests : int
+        Candidates whose validity was tested.
+    n_global_successes : int
+        Samples that succeeded globally.
+    """
+
+    X: np.ndarray
+    labels: tuple[Label, ...]
+    n_iterations: int
+    n_validity_tests: int
+    n_global_successes: int
+
+
+def explore(
+    problem: Problem,
+    settings: LearningSettings,
+    rng: np.random.Generator,
+    *,
+    simulate: SimulateFn | None = None,
+) -> Exploration:
+    """Initial exploration by adaptive sampling (paper Alg. 1, authors'
+    ``find_successful_samples_adaptive``).
+
+    1. Simulate the first ``n_initial`` valid points of a Sobol sequence (at most
+       ``max_draws_factor * n_initial`` candidates).
+    2. While fewer than ``n_successes`` samples succeeded globally and fewer than
+       ``exploration_max_iter`` iterations ran: take the ``n_successes`` samples with the
+       most successful events (stable order on ties), build a mixture with one Gaussian per
+       sample (weight proportional to its number of successful events, covariance
+       ``exploration_variance * I``), and simulate its first ``exploration_batch`` valid
+       draws (out of ``max_draws_factor`` times as many).
+
+    When no selected sample has any successful event (the paper's weights would be 0/0),
+    the iteration continues the Sobol sequence instead: with no partial success to grow
+    from, space filling is the best guess.
+
+    Parameters
+    ----------
+    problem : Problem
+    settings : LearningSettings
+    rng : numpy.random.Generator
+    simulate : callable, optional
+        ``simulate(X) -> list[Label]``, default ``problem.simulate``; the driver passes one
+        that records and parallelises.
+
+    Returns
+    -------
+    Exploration
+    """
+    simulate = simulate or problem.simulate
+    s = settings
+    d = problem.dimension
+    sobol = SobolStream(d, s.sobol_scramble, rng)
+
+    X0, n_tested = _sobol_valid(sobol, problem.validity, s.n_initial, s.max_draws_factor)
+    if len(X0) < s.n_initial:
+        logger.warning(
+            "exploration: only %d valid Sobol points among %d candidates (wanted %d)",
+            len(X0), n_tested, s.n_initial,
+        )
+    Xs = [X0]
+    labels = list(simulate(X0)) if len(X0) else []
+    n_succ = np.array([lab.n_success for lab in labels], dtype=float)
+    n_global = sum(lab.success for lab in labels)
+    k = 0
+    while n_global < s.n_successes and k < s.exploration_max_iter:
+        top = np.argsort(-n_succ, kind="stable")[: min(s.n_successes, len(n_succ))]
+        w = n_succ[top]
+        if w.sum() > 0:
+            cands = sample_mixture(
+                np.vstack(Xs)[top], w, s.exploration_variance,
+                s.max_draws_factor * s.exploration_batch, rng,
+            )
+            Xk, nt = first_valid(cands, problem.validity, s.exploration_batch)
+        else:
+            Xk, nt = _sobol_valid(sobol, problem.validity, s.exploration_batch, s.max_draws_factor)
+        n_tested += nt
+        k += 1
+        if len(Xk) == 0:
+            logger.warning("exploration iteration %d: no valid candidate", k)
+            continue
+        new = list(simulate(Xk))
+        Xs.append(Xk)
+        labels.extend(new)
+        n_succ = np.concatenate([n_succ, [lab.n_success for lab in new]])
+        n_global += sum(lab.success for lab in new)
+        logger.debug("exploration iteration %d: %d global successes", k, n_global)
+    X = stack_rows(Xs, d)
+    if n_global < s.n_successes:
+        logger.info(
+            "exploration stopped after %d iterations with %d/%d global successes",
+            k, n_global, s.n_successes,
+        )
+    return Exploration(X, tuple(labels), k, n_tested, int(n_global))
+
+
+def _sobol_valid(
+    sobol: SobolStream, validity: ValidityFn, n: int, max_draws_factor: int
+) -> tuple[np.ndarray, int]:
+    """The next ``n`` valid Sobol points, drawing at most ``max_draws_factor * n``."""
+    rows: list[np.ndarray] = []
+    n_kept = n_tested = 0
+    while n_kept < n and n_tested < max_draws_factor * n:
+        block = sobol.take(min(n - n_kept, max_draws_factor * n - n_tested))
+        ok = np.asarray(validity(block), dtype=bool)
+        rows.append(block[ok])
+        n_kept += int(ok.sum())
+        n_tested += len(block)
+    return stack_rows(rows, sobol.dimension), n_tested
+
+
+def stack_rows(rows: Sequence[np.ndarray], d: int) -> np.ndarray:
+    """Stack a possibly empty list of (k, d) arrays."""
+    return np.vstack(rows) if len(rows) else np.empty((0, d))
