@@ -299,6 +299,17 @@ def _configure_build_parts(p):
     p.add_argument("--force", action="store_true", help="rebuild parts already built")
 
 
+def _lazy(module: str, name: str) -> Callable:
+    """``rgmcad.<module>.<name>``, imported on first call (keeps the CLI's start-up light)."""
+
+    def call(*args):
+        import importlib
+
+        return getattr(importlib.import_module(f"rgmcad.{module}"), name)(*args)
+
+    return call
+
+
 COMMANDS: dict[str, tuple[Callable, Callable, str]] = {
     "simulate": (_configure_simulate, cmd_simulate,
                  "simulate one layout and print the event timeline"),
@@ -307,6 +318,11 @@ COMMANDS: dict[str, tuple[Callable, Callable, str]] = {
     "render": (_configure_render, cmd_render, "draw a layout to a PNG"),
     "build parts": (_configure_build_parts, cmd_build_parts,
                     "build the parts of the shipped scenarios (STEP, STL, GLB, collision pieces)"),
+    "template": (_lazy("cli_print", "configure_template"), _lazy("cli_print", "cmd_template"),
+                 "write a printable 1:1 tiled assembly template (PDF and SVG) of a layout"),
+    "verify-print": (_lazy("cli_print", "configure_verify_print"),
+                     _lazy("cli_print", "cmd_verify_print"),
+                     "measure the scale a template sheet was printed at, from a scan or photo"),
 }
 
 

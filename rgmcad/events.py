@@ -31,58 +31,64 @@ from collections.abc import Callable
 import numpy as np
 from scipy.spatial import ConvexHull
 
+from rgmcad.geometry import invert
 from rgmcad.physics import World
 from rgmcad.scenario import EventSpec
 
 Condition = Callable[[], bool]
 
 
-def _norm(v) -> float:
-    return math.sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2])
-
-
 def contact(spec: EventSpec, world: World) -> Condition:
-    a, b, tol = spec.objects["first"], spec.objects["second"], spec.params["tolerance"]
-    return lambda: world.touching(a, b, tol)
+    return world.contact_reader(spec.objects["first"], spec.objects["second"],
+                                spec.params["tolerance"])
 
 
 def no_contact(spec: EventSpec, world: World) -> Condition:
-    a, b, tol = spec.objects["first"], spec.objects["second"], spec.params["tolerance"]
-    return lambda: not world.touching(a, b, tol)
+    touching = contact(spec, world)
+    return lambda: not touching()
 
 
 def rolling_on(spec: EventSpec, world: World) -> Condition:
-    a, b = spec.objects["rolling"], spec.objects["support"]
-    tol, w = spec.params["tolerance"], spec.params["min_angvel"]
+    touching = world.contact_reader(spec.objects["rolling"], spec.objects["support"],
+                                    spec.params["tolerance"])
+    velocity = world.velocity_reader(spec.objects["rolling"])
+    w2 = spec.params["min_angvel"] ** 2
 
     def condition():
-        return _norm(world.velocity(a)[1]) > w and world.touching(a, b, tol)
+        x, y, z = velocity()[1]
+        return x * x + y * y + z * z > w2 and touching()
 
     return condition
 
 
 def pivoting(spec: EventSpec, world: World) -> Condition:
-    body, w = spec.objects["body"], spec.params["min_angvel"]
-    return lambda: _norm(world.velocity(body)[1]) > w
+    velocity = world.velocity_reader(spec.objects["body"])
+    w2 = spec.params["min_angvel"] ** 2
+
+    def condition():
+        x, y, z = velocity()[1]
+        return x * x + y * y + z * z > w2
+
+    return condition
 
 
 def falling(spec: EventSpec, world: World) -> Condition:
-    body, v = spec.objects["body"], abs(spec.params["min_linvel"])
-    return lambda: world.velocity(body)[0][2] < -v
+    velocity, v = world.velocity_reader(spec.objects["body"]), abs(spec.params["min_linvel"])
+    return lambda: velocity()[0][2] < -v
 
 
 def rising(spec: EventSpec, world: World) -> Condition:
-    body, v = spec.objects["body"], abs(spec.params["min_linvel"])
-    return lambda: world.velocity(body)[0][2] > v
+    velocity, v = world.velocity_reader(spec.objects["body"]), abs(spec.params["min_linvel"])
+    return lambda: velocity()[0][2] > v
 
 
 def stopping(spec: EventSpec, world: World) -> Condition:
-    body = spec.objects["body"]
-    v, w = spec.params["max_linvel"], spec.params["max_angvel"]
+    velocity = world.velocity_reader(spec.objects["body"])
+    v2, w2 = spec.params["max_linvel"] ** 2, spec.params["max_angvel"] ** 2
 
     def condition():
-        lin, ang = world.velocity(body)
-        return _norm(lin) < v and _norm(ang) < w
+        (a, b, c), (x, y, z) = velocity()
+        return a * a + b * b + c * c < v2 and x * x + y * y + z * z < w2
 
     return condition
 
@@ -109,24 +115,34 @@ def toppling(spec: EventSpec, world: World) -> Condition:
     cos_limit = math.cos(math.radians(spec.params["angle"]))
     start = world.pose(body)
     up_in_body = start[:3, :3].T @ np.array([0.0, 0.0, 1.0])  # world up, in the body frame
+    cos_tilt = world.up_reader(body, up_in_body)
+    return lambda: cos_tilt() <= cos_limit
 
-    def condition():
-        now = world.pose(body)
-        return float(now[2, :3] @ up_in_body) <= cos_limit
 
-    return condition
+_HULLS: dict[int, tuple[object, np.ndarray, np.ndarray]] = {}
+
+
+def _hull_equations(built) -> tuple[np.ndarray, np.ndarray]:
+    """Outward face normals (k, 3) and offsets (k,) of a built body's convex hull, cached."""
+    cached = _HULLS.get(id(built))
+    if cached is None or cached[0] is not built:
+        hull = ConvexHull(np.asarray(built.vertices, float))
+        cached = (built, hull.equations[:, :3].copy(), hull.equations[:, 3].copy())
+        _HULLS[id(built)] = cached
+    return cached[1], cached[2]
 
 
 def inclusion(spec: EventSpec, world: World) -> Condition:
     inside, container = spec.objects["inside"], spec.objects["container"]
     inner = world.scene.bodies[inside].built
     outer = world.scene.bodies[container].built
-    hull = ConvexHull(np.asarray(outer.vertices, float))
-    normals, offsets = hull.equations[:, :3], hull.equations[:, 3]
+    normals, offsets = _hull_equations(outer)
     centre = np.append(np.asarray(inner.centre_of_mass, float), 1.0)
+    fixed = invert(world.pose(container)) if world.scene.bodies[container].static else None
 
     def condition():
-        point = (np.linalg.solve(world.pose(container), world.pose(inside) @ centre))[:3]
+        to_local = fixed if fixed is not None else invert(world.pose(container))
+        point = to_local[:3, :3] @ (world.pose(inside) @ centre)[:3] + to_local[:3, 3]
         return bool(np.all(normals @ point + offsets <= 0.0))
 
     return condition

@@ -23,8 +23,15 @@ ANGLE_KEYS = frozenset(("heading", "pitch", "roll"))
 
 
 def rotation_hpr(heading_deg: float, pitch_deg: float, roll_deg: float) -> np.ndarray:
-    """(3, 3) rotation ``Rz(h) @ Rx(p) @ Ry(r)`` from angles in degrees."""
-    return Rotation.from_euler("ZXY", [heading_deg, pitch_deg, roll_deg], degrees=True).as_matrix()
+    """(3, 3) rotation ``Rz(h) @ Rx(p) @ Ry(r)`` from angles in degrees (written out: every
+    object of every layout goes through here)."""
+    h, p, r = np.radians([heading_deg, pitch_deg, roll_deg])
+    ch, sh, cp, sp, cr, sr = np.cos(h), np.sin(h), np.cos(p), np.sin(p), np.cos(r), np.sin(r)
+    return np.array([
+        [ch * cr - sh * sp * sr, -sh * cp, ch * sr + sh * sp * cr],
+        [sh * cr + ch * sp * sr, ch * cp, sh * sr - ch * sp * cr],
+        [-cp * sr, sp, cp * cr],
+    ])
 
 
 def hpr_of(rotation: np.ndarray) -> np.ndarray:
@@ -62,9 +69,27 @@ def invert(matrix: np.ndarray) -> np.ndarray:
 
 
 def to_pybullet(matrix: np.ndarray) -> tuple[list[float], list[float]]:
-    """Position and (x, y, z, w) quaternion of a (4, 4) rigid transform, for pybullet."""
-    quat = Rotation.from_matrix(matrix[:3, :3]).as_quat()  # scipy is (x, y, z, w) too
-    return matrix[:3, 3].tolist(), quat.tolist()
+    """Position and unit (x, y, z, w) quaternion of a (4, 4) rigid transform, for pybullet.
+
+    Shepperd's method, written out: scipy's conversion costs ~50 us, and world building calls
+    this for every body.
+    """
+    m = matrix
+    trace = m[0, 0] + m[1, 1] + m[2, 2]
+    if trace > 0:
+        s = 2.0 * np.sqrt(trace + 1.0)
+        q = [(m[2, 1] - m[1, 2]) / s, (m[0, 2] - m[2, 0]) / s, (m[1, 0] - m[0, 1]) / s, s / 4]
+    elif m[0, 0] > m[1, 1] and m[0, 0] > m[2, 2]:
+        s = 2.0 * np.sqrt(1.0 + m[0, 0] - m[1, 1] - m[2, 2])
+        q = [s / 4, (m[0, 1] + m[1, 0]) / s, (m[0, 2] + m[2, 0]) / s, (m[2, 1] - m[1, 2]) / s]
+    elif m[1, 1] > m[2, 2]:
+        s = 2.0 * np.sqrt(1.0 + m[1, 1] - m[0, 0] - m[2, 2])
+        q = [(m[0, 1] + m[1, 0]) / s, s / 4, (m[1, 2] + m[2, 1]) / s, (m[0, 2] - m[2, 0]) / s]
+    else:
+        s = 2.0 * np.sqrt(1.0 + m[2, 2] - m[0, 0] - m[1, 1])
+        q = [(m[0, 2] + m[2, 0]) / s, (m[1, 2] + m[2, 1]) / s, s / 4, (m[1, 0] - m[0, 1]) / s]
+    quat = np.asarray(q, float)
+    return m[:3, 3].tolist(), (quat / np.linalg.norm(quat)).tolist()
 
 
 def from_pybullet(position, quaternion) -> np.ndarray:

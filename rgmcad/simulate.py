@@ -45,6 +45,8 @@ class SimulationResult:
     wall_time: float  # seconds, validity test included
     step_time: float = 0.0  # seconds spent inside the physics steps
     validity: Validity | None = None
+    validity_time: float = 0.0  # seconds in the validity test
+    build_time: float = 0.0  # seconds building the world and the event conditions
 
     @property
     def n_success(self) -> int:
@@ -90,8 +92,10 @@ def simulate(scenario: Scenario, values, parts: Mapping[str, BuiltPart], *,
         validity = check_validity(scene, tolerance)
         if not validity.valid:
             events = tuple(EventRecord(n, "asleep", None) for n in scenario.events)
-            return SimulationResult(Outcome.INVALID, events, 0.0,
-                                    time.perf_counter() - start, 0.0, validity)
+            elapsed = time.perf_counter() - start
+            return SimulationResult(Outcome.INVALID, events, 0.0, elapsed, 0.0, validity,
+                                    elapsed)
+    built_at = time.perf_counter()
     settings = scenario.settings
     world = World(scene, settings)
     graph = CausalGraph(
@@ -99,6 +103,7 @@ def simulate(scenario: Scenario, values, parts: Mapping[str, BuiltPart], *,
         {name: make_condition(spec, world) for name, spec in scenario.events.items()},
         settings.event_timeout,
     )
+    ready_at = time.perf_counter()
     dt = settings.timestep
     n_steps = int(round(settings.duration / dt))
     step_time = 0.0
@@ -120,4 +125,5 @@ def simulate(scenario: Scenario, values, parts: Mapping[str, BuiltPart], *,
         observer(world, t)
     outcome = Outcome.SUCCESS if graph.resolved and graph.succeeded() else Outcome.FAILURE
     events = tuple(EventRecord(n, graph.state[n], graph.time[n]) for n in scenario.events)
-    return SimulationResult(outcome, events, t, clock() - start, step_time, validity)
+    return SimulationResult(outcome, events, t, clock() - start, step_time, validity,
+                            built_at - start, ready_at - built_at)
