@@ -323,6 +323,12 @@ COMMANDS: dict[str, tuple[Callable, Callable, str]] = {
     "verify-print": (_lazy("cli_print", "configure_verify_print"),
                      _lazy("cli_print", "cmd_verify_print"),
                      "measure the scale a template sheet was printed at, from a scan or photo"),
+    "optimize": (_lazy("cli_optimize", "configure_optimize"),
+                 _lazy("cli_optimize", "cmd_optimize"),
+                 "learn the success probability and optimise a robust layout (resumable run)"),
+    "evaluate": (_lazy("cli_optimize", "configure_evaluate"),
+                 _lazy("cli_optimize", "cmd_evaluate"),
+                 "measure a layout's local and global robustness by simulation"),
 }
 
 
