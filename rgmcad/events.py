@@ -137,13 +137,13 @@ def inclusion(spec: EventSpec, world: World) -> Condition:
     inner = world.scene.bodies[inside].built
     outer = world.scene.bodies[container].built
     normals, offsets = _hull_equations(outer)
-    centre = np.append(np.asarray(inner.centre_of_mass, float), 1.0)
+    centre = world.point_reader(inside, inner.centre_of_mass)
     fixed = invert(world.pose(container)) if world.scene.bodies[container].static else None
 
     def condition():
         to_local = fixed if fixed is not None else invert(world.pose(container))
-        point = to_local[:3, :3] @ (world.pose(inside) @ centre)[:3] + to_local[:3, 3]
-        return bool(np.all(normals @ point + offsets <= 0.0))
+        point = to_local[:3, :3] @ centre() + to_local[:3, 3]
+        return bool((normals @ point + offsets).max() <= 0.0)
 
     return condition
 

@@ -475,6 +475,33 @@ class World:
 
         return read
 
+    def point_reader(self, name: str, point):
+        """A function returning the world position (x, y, z) of ``point`` (3,), a point fixed
+        in the body's part frame."""
+        h, cid = self.handles[name], self.cid
+        a, b, c = (h.com_to_part[:3, :3] @ np.asarray(point, float) + h.com_to_part[:3, 3]).tolist()
+        if h.link < 0:
+            get_pose, uid = pb.getBasePositionAndOrientation, h.uid
+
+            def state():
+                return get_pose(uid, physicsClientId=cid)
+        else:
+            get_state, uid, link = pb.getLinkState, h.uid, h.link
+
+            def state():
+                return get_state(uid, link, physicsClientId=cid)[:2]
+
+        def read():
+            (px, py, pz), (x, y, z, w) = state()
+            return (px + (1 - 2 * (y * y + z * z)) * a + 2 * (x * y - z * w) * b
+                    + 2 * (x * z + y * w) * c,
+                    py + 2 * (x * y + z * w) * a + (1 - 2 * (x * x + z * z)) * b
+                    + 2 * (y * z - x * w) * c,
+                    pz + 2 * (x * z - y * w) * a + 2 * (y * z + x * w) * b
+                    + (1 - 2 * (x * x + y * y)) * c)
+
+        return read
+
     def contact_reader(self, a: str, b: str, tolerance: float):
         """A function returning True while bodies ``a`` and ``b`` are within ``tolerance`` m."""
         ha, hb, cid = self.handles[a], self.handles[b], self.cid
