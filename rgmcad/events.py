@@ -138,11 +138,19 @@ def inclusion(spec: EventSpec, world: World) -> Condition:
     outer = world.scene.bodies[container].built
     normals, offsets = _hull_equations(outer)
     centre = world.point_reader(inside, inner.centre_of_mass)
+    (x0, y0, z0), (x1, y1, z1) = np.asarray(outer.bbox, float).tolist()
     fixed = invert(world.pose(container)) if world.scene.bodies[container].static else None
+    rows = fixed[:3].tolist() if fixed is not None else None
 
     def condition():
-        to_local = fixed if fixed is not None else invert(world.pose(container))
-        point = to_local[:3, :3] @ centre() + to_local[:3, 3]
+        if rows is None:
+            to_local = invert(world.pose(container))
+            point = to_local[:3, :3] @ centre() + to_local[:3, 3]
+        else:  # a static container: plain floats, and the bounding box rules out most steps
+            x, y, z = centre()
+            point = [r[0] * x + r[1] * y + r[2] * z + r[3] for r in rows]
+            if not (x0 <= point[0] <= x1 and y0 <= point[1] <= y1 and z0 <= point[2] <= z1):
+                return False
         return bool((normals @ point + offsets).max() <= 0.0)
 
     return condition

@@ -1,6 +1,7 @@
 """Where a simulation's time goes, per shipped scenario: stepping vs everything else.
 
-Prints, for each scenario's `solved` layout (and a few Sobol layouts), the mean wall time per
+Prints, for each scenario's `solved` layout and its first valid Sobol layouts (the mix of
+successes and failures an optimisation run simulates), the mean wall time per
 simulation, the time inside pybullet's stepSimulation, the overhead (world build, validity,
 event checks, bookkeeping) as a share of the stepping time, and simulations per second on one
 core. Also times the validity test on a 50-body scene.
@@ -22,12 +23,18 @@ from rgmcad.simulate import simulate
 from rgmcad.validity import check_validity
 
 
-def bench_scenario(path: Path, repeat: int) -> None:
+def bench_scenario(path: Path, repeat: int, args_valid: int) -> None:
     scenario = load_scenario(path)
     parts = load_parts(scenario)
+    # the solved layout plus the first valid layouts of a Sobol sequence: the mix of
+    # successes and failures an optimisation run simulates
     layouts = [values_from_mapping(scenario, scenario.layouts["solved"])]
-    for v in qmc.Sobol(scenario.dimension, seed=0).random(4):
-        layouts.append(values_from_vector(scenario, v))
+    for v in qmc.Sobol(scenario.dimension, seed=0).random(256):
+        values = values_from_vector(scenario, v)
+        if check_validity(make_scene(scenario, values, parts)).valid:
+            layouts.append(values)
+        if len(layouts) == 1 + args_valid:
+            break
     simulate(scenario, layouts[0], parts)  # warm caches (OBJ pieces, manifolds)
     wall = step = valid = build = 0.0
     n = sim = 0
@@ -67,10 +74,11 @@ def bench_validity() -> None:
 
 def main() -> None:
     parser = argparse.ArgumentParser()
-    parser.add_argument("--repeat", type=int, default=3)
+    parser.add_argument("--repeat", type=int, default=2)
+    parser.add_argument("--layouts", type=int, default=8, help="valid Sobol layouts per scenario")
     args = parser.parse_args()
     for path in sorted(Path("scenarios").glob("*.toml")):
-        bench_scenario(path, args.repeat)
+        bench_scenario(path, args.repeat, args.layouts)
     bench_validity()
 
 
