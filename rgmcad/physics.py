@@ -503,18 +503,24 @@ class World:
         return read
 
     def contact_reader(self, a: str, b: str, tolerance: float):
-        """A function returning True while bodies ``a`` and ``b`` are within ``tolerance`` m."""
+        """A function returning True while bodies ``a`` and ``b`` are within ``tolerance`` m.
+
+        After the first step it reads the engine's contact manifolds, which hold every point
+        pair closer than the contact breaking threshold (3 us against 5-15 us for a fresh
+        closest-points query on compound bodies); before it, or for a tolerance wider than
+        that threshold, it asks for the closest points.
+        """
         ha, hb, cid = self.handles[a], self.handles[b], self.cid
         if ha.uid == hb.uid:
             return lambda: True  # welded or hinged together
-        closest = pb.getClosestPoints
+        closest, contacts = pb.getClosestPoints, pb.getContactPoints
         ua, ub, la, lb = ha.uid, hb.uid, ha.link, hb.link
-        return lambda: bool(closest(ua, ub, tolerance, la, lb, physicsClientId=cid))
+        if tolerance > self.settings.contact_breaking_threshold:
+            return lambda: bool(closest(ua, ub, tolerance, la, lb, physicsClientId=cid))
 
-    def touching(self, a: str, b: str, tolerance: float) -> bool:
-        """True when bodies ``a`` and ``b`` are within ``tolerance`` metres of each other."""
-        ha, hb = self.handles[a], self.handles[b]
-        if ha.uid == hb.uid:
-            return True  # welded or hinged together
-        return bool(pb.getClosestPoints(ha.uid, hb.uid, tolerance, ha.link, hb.link,
-                                        physicsClientId=self.cid))
+        def read():
+            if self.time == 0.0:
+                return bool(closest(ua, ub, tolerance, la, lb, physicsClientId=cid))
+            return any(c[8] <= tolerance for c in contacts(ua, ub, la, lb, physicsClientId=cid))
+
+        return read
