@@ -2,6 +2,7 @@
 
 import time
 
+import numpy as np
 import pytest
 from _support import scene_of, tiny
 
@@ -61,3 +62,24 @@ def test_fifty_bodies_in_under_twenty_milliseconds():
     per_call = (time.perf_counter() - start) / 5
     assert result.valid
     print(f"validity, 50 bodies: {per_call * 1e3:.1f} ms")  # a figure, not an assertion
+
+
+@pytest.mark.parametrize("sink", [0.0, 5e-4, 2e-3])
+def test_ball_shortcut_agrees_with_the_mesh_intersection(sink):
+    from rgmcad import validity
+
+    r = 0.01
+    sc = tiny({"a": {"part": "ball", "params": {"radius": r}, "mass": 0.01,
+                     "pose": {"z": -0.005 + r - sink, "x": 0.003}},  # on the groove's floor
+               "b": {"part": "track", "params": {"length": 0.1, "width": 0.06, "height": 0.02,
+                                                 "wall": 0.005}}}, E)
+    scene = scene_of(sc)
+    ball, track = scene.bodies["a"], scene.bodies["b"]
+    analytic = validity._ball_depth(ball, track)
+    assert analytic == pytest.approx(sink, abs=1e-9)
+    inter = validity._manifold(ball).transform(ball.pose[:3, :4]) ^ validity._manifold(
+        track).transform(track.pose[:3, :4])
+    mesh_depth = 0.0 if inter.is_empty() else validity.thickness(
+        np.asarray(inter.to_mesh().vert_properties)[:, :3].astype(float))
+    assert mesh_depth == pytest.approx(sink, abs=1e-4)  # the ball mesh is inscribed
+    assert check_validity(scene).valid == (sink <= 2e-4)
