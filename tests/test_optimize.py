@@ -1,0 +1,210 @@
+"""`rgmcad optimize` and `rgmcad evaluate` on the real simulator: outputs, resuming after an
+interruption, independence from the number of workers, refusal of a foreign run directory,
+and the pieces they are made of (run store, robustness estimator)."""
+
+import contextlib
+import io
+import json
+import shutil
+
+import numpy as np
+import pytest
+
+import rgmcad.cli_optimize
+from rgmcad.cli import main
+from rgmcad.errors import ScenarioError
+from rgmcad.evaluate import EPS_GRID, ball_samples, wilson_interval
+from rgmcad.learning import LearningSettings
+from rgmcad.problem import ScenarioProblem, SimRecord
+from rgmcad.runstore import SIMULATIONS, RunStore, run_identity
+
+SIMPLE = "scenarios/simple.toml"
+
+# A budget small enough for the fast suite (a few seconds per run on one core).
+TINY = LearningSettings(
+    n_initial=40, n_successes=8, exploration_max_iter=8, active_batch=5, active_max_iter=1,
+    svm_C_grid=(1.0, 10.0, 100.0), svm_gamma_grid=(1.0, 10.0), svm_class_weights=(None,),
+    mi_null_permutations=2, placement_samples=4, optimizer_max_eval=40,
+)
+
+
+def _run(argv) -> tuple[int, dict | None]:
+    out = io.StringIO()
+    with contextlib.redirect_stdout(out):
+        code = main(argv)
+    text = out.getvalue().strip()
+    return code, (json.loads(text) if text else None)
+
+
+@pytest.fixture(scope="module")
+def tiny_budget():
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(rgmcad.cli_optimize, "budget", lambda name: TINY)
+        yield
+
+
+@pytest.fixture(scope="module")
+def reference(tiny_budget, tmp_path_factory):
+    """One uninterrupted run on one worker: (run dir, its JSON summary)."""
+    run = tmp_path_factory.mktemp("reference") / "run"
+    code, summary = _run(["optimize", SIMPLE, "--run", str(run), "--seed", "3",
+                          "--budget", "small", "--workers", "1", "--json"])
+    assert code == 0
+    return run, summary
+
+
+def test_the_pipeline_runs_on_simple_and_writes_its_outputs(reference):
+    run, summary = reference
+    assert {"layout", "vector", "probability", "simulations", "wall_time"} <= set(summary)
+    for name in ("settings.json", "simulations.jsonl", "model.pkl", "result.json",
+                 "layout.json", "start.json", "report.md", "probability_slice.png",
+                 "exploration.png"):
+        assert (run / name).stat().st_size > 0, name
+    lines = (run / SIMULATIONS).read_text().splitlines()
+    assert len(lines) <= summary["simulations"]  # repeated vectors are simulated once
+    layout = json.loads((run / "layout.json").read_text())
+    assert layout["scenario"] == "simple" and len(layout["vector"]) == 3
+    assert set(layout["tolerances"]) == {"track.x", "track.z", "track.roll"}
+    assert all(down >= 0 and up >= 0 for down, up in layout["tolerances"].values())
+    assert set(layout["poses"]) == {"track"} and "roll" in layout["poses"]["track"]
+    assert summary["weakest_event"] in summary["event_probabilities"]
+    # the layout file works as --layout FILE, and the chosen layout was verified
+    code, sim = _run(["simulate", SIMPLE, "--layout", str(run / "layout.json"), "--json"])
+    assert code == 0 and np.allclose(sim["vector"], layout["vector"])
+    assert summary["verified"] == (sim["outcome"] == "success")
+
+
+def test_resuming_an_interrupted_run_gives_the_same_result(reference, tmp_path):
+    ref_run, ref = reference
+    run = tmp_path / "run"
+    run.mkdir()
+    shutil.copy(ref_run / "settings.json", run)
+    data = (ref_run / SIMULATIONS).read_bytes()
+    lines = data.splitlines(keepends=True)
+    kept = len(lines) // 2
+    # half the simulations, then a line cut in the middle (killed while writing)
+    (run / SIMULATIONS).write_bytes(b"".join(lines[:kept]) + lines[kept][: len(lines[kept]) // 2])
+    code, resumed = _run(["optimize", SIMPLE, "--run", str(run), "--seed", "3",
+                          "--budget", "small", "--workers", "1", "--json"])
+    assert code == 0
+    assert resumed["vector"] == ref["vector"]
+    assert resumed["probability"] == ref["probability"]
+    assert resumed["simulations"] == ref["simulations"]
+    assert resumed["simulated_now"] == len(lines) - kept
+    stored = [json.loads(line) for line in (run / SIMULATIONS).read_text().splitlines()]
+    assert len(stored) == len(lines)
+    # a finished run is not recomputed
+    code, again = _run(["optimize", SIMPLE, "--run", str(run), "--seed", "3",
+                        "--budget", "small", "--workers", "1", "--json"])
+    assert code == 0 and again["vector"] == ref["vector"]
+
+
+def test_two_workers_give_the_same_result_as_one(reference, tmp_path):
+    _, ref = reference
+    code, two = _run(["optimize", SIMPLE, "--run", str(tmp_path / "run"), "--seed", "3",
+                      "--budget", "small", "--workers", "2", "--json"])
+    assert code == 0
+    assert two["vector"] == ref["vector"] and two["probability"] == ref["probability"]
+
+
+@pytest.mark.parametrize("change", [["--seed", "4"], ["--budget", "default"]])
+def test_a_run_directory_made_with_other_settings_is_refused(reference, change, capsys):
+    run, _ = reference
+    argv = ["optimize", SIMPLE, "--run", str(run), "--seed", "3", "--budget", "small"]
+    argv[argv.index(change[0]) + 1] = change[1]
+    with pytest.MonkeyPatch.context() as mp:  # "default" must differ from the tiny budget
+        mp.setattr(rgmcad.cli_optimize, "budget",
+                   lambda name: TINY if name == "small" else LearningSettings())
+        assert main(argv) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "settings.json" in err
+
+
+def test_a_run_directory_of_another_scenario_is_refused(reference, capsys):
+    run, _ = reference
+    assert main(["optimize", "scenarios/ballrun.toml", "--run", str(run), "--seed", "3",
+                 "--budget", "small"]) == 2
+    assert "scenario" in capsys.readouterr().err
+
+
+def test_evaluate_json(tmp_path):
+    code, out = _run(["evaluate", SIMPLE, "--layout", "solved", "--samples", "2",
+                      "--workers", "1", "--out", str(tmp_path / "rob.png"), "--json"])
+    assert code == 0
+    assert {"rho_g", "curve", "simulations"} <= set(out)
+    assert len(out["curve"]) == len(EPS_GRID) and all(len(row) == 4 for row in out["curve"])
+    assert all(lo <= rho <= hi for _, rho, lo, hi in out["curve"])
+    assert out["simulations"] == sum(out["counts"]) <= 2 * len(EPS_GRID)
+    assert 0 <= out["rho_g"] <= 1 and (tmp_path / "rob.png").stat().st_size > 0
+
+
+def test_evaluate_refuses_a_bad_layout(capsys):
+    assert main(["evaluate", SIMPLE, "--layout", "nonexistent"]) == 2
+    assert len(capsys.readouterr().err.strip().splitlines()) == 1
+
+
+# --- the pieces ------------------------------------------------------------------------------
+
+
+def _record(outcome="failure"):
+    return SimRecord(True, outcome, {"a": (True, 0.1), "b": (None, None)}, 0.05)
+
+
+def test_run_store_drops_a_half_written_line_and_appends_after_it(tmp_path):
+    ident = run_identity("s", "0" * 64, 0, TINY)
+    with RunStore(tmp_path, ident) as store:
+        store.append(np.array([0.1, 0.2]), _record())
+        store.append(np.array([0.3, 0.4]), _record("success"))
+    path = tmp_path / SIMULATIONS
+    path.write_bytes(path.read_bytes() + b'{"i": 2, "vector": [0.5, 0.')
+    with RunStore(tmp_path, ident) as store:
+        assert store.n_lines == 2
+        assert store.lookup(np.array([0.3, 0.4])).outcome == "success"
+        assert store.lookup(np.array([0.3, 0.40000000000000002])) is not None  # same double
+        assert store.lookup(np.array([0.3, 0.4000001])) is None
+        store.append(np.array([0.5, 0.6]), _record())
+    rows = [json.loads(line) for line in path.read_text().splitlines()]
+    assert [r["i"] for r in rows] == [0, 1, 2] and rows[2]["vector"] == [0.5, 0.6]
+
+
+def test_run_store_refuses_other_settings_and_a_second_user(tmp_path):
+    with RunStore(tmp_path, run_identity("s", "0" * 64, 0, TINY)):
+        with pytest.raises(ScenarioError, match="another rgmcad process"):
+            RunStore(tmp_path, run_identity("s", "0" * 64, 0, TINY))
+    with pytest.raises(ScenarioError, match="n_initial"):
+        RunStore(tmp_path, run_identity("s", "0" * 64, 0, TINY.replace(n_initial=41)))
+    # n_jobs changes the speed, not the result
+    RunStore(tmp_path, run_identity("s", "0" * 64, 0, TINY.replace(n_jobs=2))).close()
+
+
+def test_scenario_problem_pickles_small_and_matches_the_simulator():
+    import pickle
+
+    problem = ScenarioProblem(SIMPLE)
+    blob = pickle.dumps(problem)
+    assert len(blob) < 2000
+    clone = pickle.loads(blob)
+    x = np.array([0.5, 0.5, 0.5])
+    assert clone.simulate_one(x).events == problem.simulate_one(x).events
+    assert problem.validity(np.array([x]))[0] == (problem.penetration(x) == 0)
+
+
+def test_ball_samples_are_uniform_in_the_ball_inside_the_cube():
+    rng = np.random.default_rng(0)
+    x = np.array([0.05, 0.5, 0.5])
+    Y = ball_samples(x, 0.2, 4000, rng)
+    assert len(Y) == 4000
+    assert np.all(np.linalg.norm(Y - x, axis=1) <= 0.2) and np.all((Y >= 0) & (Y <= 1))
+    # uniform in the ball cut by the face x0 = 0: P(|y - x| <= 0.1) = V(inner ball minus its
+    # cap of height 0.05) / V(ball minus its cap of height 0.15) = 0.1543
+    inner = np.mean(np.linalg.norm(Y - x, axis=1) <= 0.1)
+    assert abs(inner - 0.1543) < 0.02
+
+
+def test_wilson_interval_covers_and_is_narrow_for_large_counts():
+    low, high = wilson_interval([0, 5, 50, 500], [10, 10, 100, 1000])
+    assert low[0] == 0 and 0.2 < high[0] < 0.32
+    assert low[1] < 0.5 < high[1]
+    assert high[3] - low[3] < 0.07
+    low, high = wilson_interval([0], [0])
+    assert (low[0], high[0]) == (0.0, 1.0)

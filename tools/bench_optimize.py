@@ -1,0 +1,121 @@
+"""Where the time of `rgmcad optimize` goes, and how it scales with workers.
+
+1. Runs `rgmcad optimize SCENARIO` (default: ballrun, default budget) in a fresh run directory
+   and splits its wall time into: simulation (waiting for the pool to simulate), validity
+   tests sent to the pool, the optimiser's penetration tests (in this process), and the rest
+   (training, sampling, optimisation, bookkeeping, plots). Prints the share outside
+   simulation.
+2. Simulates the same fixed set of valid Sobol layouts with 1 and with 2 workers and prints
+   the speed-up of 2 workers over 1 (simulation throughput, pool start included).
+
+    uv run python tools/bench_optimize.py [--scenario scenarios/ballrun.toml]
+        [--budget default] [--workers 2] [--seed 0] [--layouts 200] [--skip-run]
+"""
+
+import argparse
+import contextlib
+import io
+import json
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+from scipy.stats import qmc
+
+import rgmcad.runstore
+from rgmcad.build import DEFAULT_BUILD_DIR
+from rgmcad.cli import main as cli_main
+from rgmcad.executor import PoolExecutor, SerialExecutor
+from rgmcad.problem import ScenarioProblem, context
+
+TIMES = {"simulation": 0.0, "validity": 0.0, "penetration": 0.0}
+
+
+class TimedProblem(rgmcad.runstore.RecordedProblem):
+    """RecordedProblem that adds up the time spent in each kind of call."""
+
+    def simulate_records(self, X):
+        t = time.perf_counter()
+        try:
+            return super().simulate_records(X)
+        finally:
+            TIMES["simulation"] += time.perf_counter() - t
+
+    def validity(self, X):
+        t = time.perf_counter()
+        try:
+            return super().validity(X)
+        finally:
+            TIMES["validity"] += time.perf_counter() - t
+
+    def penetration(self, x):
+        t = time.perf_counter()
+        try:
+            return super().penetration(x)
+        finally:
+            TIMES["penetration"] += time.perf_counter() - t
+
+
+def overhead(args) -> None:
+    rgmcad.runstore.RecordedProblem = TimedProblem  # cmd_optimize looks it up at call time
+    with tempfile.TemporaryDirectory() as tmp:
+        run = Path(tmp) / "run"
+        argv = ["optimize", args.scenario, "--run", str(run), "--seed", str(args.seed),
+                "--budget", args.budget, "--json"]
+        if args.workers:
+            argv += ["--workers", str(args.workers)]
+        out = io.StringIO()
+        start = time.perf_counter()
+        with contextlib.redirect_stdout(out):
+            code = cli_main(argv)
+        wall = time.perf_counter() - start
+        summary = json.loads(out.getvalue())
+    other = wall - sum(TIMES.values())
+    print(f"\n{summary['scenario']} (budget {args.budget}, seed {args.seed}, workers "
+          f"{args.workers or 'all'}): exit {code}, {summary['simulations']} simulations, "
+          f"{summary['successes']} successes, wall {wall:.1f} s")
+    for name, t in [*TIMES.items(), ("other (training, sampling, optimisation, bookkeeping)",
+                                     other)]:
+        print(f"  {name:58s} {t:8.1f} s  {t / wall * 100:5.1f} %")
+    print(f"  share of the wall time outside simulation: {(wall - TIMES['simulation']) / wall:.1%}"
+          f" (outside simulation and pool validity tests: {other / wall:.1%})")
+
+
+def speedup(args) -> None:
+    problem = ScenarioProblem(args.scenario, args.build_dir)
+    sobol = qmc.Sobol(problem.dimension, scramble=True, rng=0).random(8 * args.layouts)
+    X = sobol[problem.validity(sobol)][: args.layouts]
+    init = (context, (problem.scenario_path, problem.build_dir))
+    times = {}
+    results = {}
+    for workers in (1, 2):
+        start = time.perf_counter()
+        ex = SerialExecutor(*init) if workers == 1 else PoolExecutor(workers, *init)
+        with ex:
+            results[workers] = list(ex.map(problem.simulate_one, list(X)))
+        times[workers] = time.perf_counter() - start
+        print(f"{workers} worker(s): {len(X)} simulations in {times[workers]:.2f} s "
+              f"({len(X) / times[workers]:.1f} /s)")
+    same = all(a.events == b.events for a, b in zip(results[1], results[2], strict=True))
+    print(f"speed-up of 2 workers over 1: {times[1] / times[2]:.2f}x (identical results: {same})")
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--scenario", default="scenarios/ballrun.toml")
+    parser.add_argument("--budget", default="default")
+    parser.add_argument("--workers", type=int, default=None)
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--layouts", type=int, default=200)
+    parser.add_argument("--build-dir", default=str(DEFAULT_BUILD_DIR))
+    parser.add_argument("--skip-run", action="store_true", help="only the speed-up")
+    args = parser.parse_args()
+    np.seterr(all="ignore")
+    speedup(args)
+    if not args.skip_run:
+        overhead(args)
+
+
+if __name__ == "__main__":
+    main()
