@@ -272,7 +272,11 @@ class World:
             cached = _MASS_CACHE.get(key)
             if cached is not None and cached[0] is members[0].built:
                 return cached[1:]
-        props = _mass_of([(b, invert(frame) @ b.pose) for b in members if not b.static])
+        if len(members) == 1:  # exactly the identity: the cached value must not depend on
+            relative = [(members[0], np.eye(4))]  # the pose the process happened to see first
+        else:
+            relative = [(b, invert(frame) @ b.pose) for b in members if not b.static]
+        props = _mass_of(relative)
         moments, axes = _principal(props.inertia)
         com_frame = np.eye(4)
         com_frame[:3, :3], com_frame[:3, 3] = axes, props.com

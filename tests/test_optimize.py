@@ -208,3 +208,26 @@ def test_wilson_interval_covers_and_is_narrow_for_large_counts():
     assert high[3] - low[3] < 0.07
     low, high = wilson_interval([0], [0])
     assert (low[0], high[0]) == (0.0, 1.0)
+
+
+# Two valid BALLRUN layouts: whether B is simulated first must not change A's simulation.
+_BALLRUN_A = [0.29057695902884007, 0.28684365190565586, 0.10656715836375952,
+              0.33929358795285225, 0.8954978417605162, 0.1586164440959692, 0.7111092647537589,
+              0.38492103945463896]
+_BALLRUN_B = [0.6217232290655375, 0.9346422553062439, 0.8769307704642415, 0.30552376341074705,
+              0.9169419407844543, 0.05207661725580692, 0.2744410736486316, 0.8762572268024087]
+
+
+def test_a_simulation_does_not_depend_on_what_the_process_simulated_before():
+    import subprocess
+    import sys
+
+    code = ("import json, sys, numpy as np\n"
+            "from rgmcad.problem import ScenarioProblem\n"
+            "p = ScenarioProblem('scenarios/ballrun.toml')\n"
+            "out = [p.simulate_one(np.array(v)).events for v in json.loads(sys.argv[1])][-1]\n"
+            "print(json.dumps(out))\n")
+    runs = [subprocess.run([sys.executable, "-c", code, json.dumps(seq)], capture_output=True,
+                           text=True, check=True).stdout
+            for seq in ([_BALLRUN_A], [_BALLRUN_B, _BALLRUN_A])]
+    assert runs[0] == runs[1]

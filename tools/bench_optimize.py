@@ -5,11 +5,12 @@
    tests sent to the pool, the optimiser's penetration tests (in this process), and the rest
    (training, sampling, optimisation, bookkeeping, plots). Prints the share outside
    simulation.
-2. Simulates the same fixed set of valid Sobol layouts with 1 and with 2 workers and prints
-   the speed-up of 2 workers over 1 (simulation throughput, pool start included).
+2. Simulates the same fixed set of valid Sobol layouts with 1 and with 2 workers, alternately
+   ``--repeat`` times, and prints the median speed-up of 2 workers over 1 (simulation
+   throughput, pool start included).
 
     uv run python tools/bench_optimize.py [--scenario scenarios/ballrun.toml]
-        [--budget default] [--workers 2] [--seed 0] [--layouts 200] [--skip-run]
+        [--budget default] [--workers 2] [--seed 0] [--layouts 200] [--repeat 3] [--skip-run]
 """
 
 import argparse
@@ -83,22 +84,28 @@ def overhead(args) -> None:
 
 
 def speedup(args) -> None:
+    """Alternate 1 and 2 workers ``--repeat`` times (the machine's speed drifts) and report
+    the median ratio."""
     problem = ScenarioProblem(args.scenario, args.build_dir)
     sobol = qmc.Sobol(problem.dimension, scramble=True, rng=0).random(8 * args.layouts)
     X = sobol[problem.validity(sobol)][: args.layouts]
     init = (context, (problem.scenario_path, problem.build_dir))
-    times = {}
+    ratios = []
     results = {}
-    for workers in (1, 2):
-        start = time.perf_counter()
-        ex = SerialExecutor(*init) if workers == 1 else PoolExecutor(workers, *init)
-        with ex:
-            results[workers] = list(ex.map(problem.simulate_one, list(X)))
-        times[workers] = time.perf_counter() - start
-        print(f"{workers} worker(s): {len(X)} simulations in {times[workers]:.2f} s "
-              f"({len(X) / times[workers]:.1f} /s)")
+    for _ in range(args.repeat):
+        times = {}
+        for workers in (1, 2):
+            start = time.perf_counter()
+            ex = SerialExecutor(*init) if workers == 1 else PoolExecutor(workers, *init)
+            with ex:
+                results[workers] = list(ex.map(problem.simulate_one, list(X)))
+            times[workers] = time.perf_counter() - start
+        ratios.append(times[1] / times[2])
+        print(f"{len(X)} simulations: 1 worker {times[1]:.2f} s, 2 workers {times[2]:.2f} s "
+              f"(pool start included): {ratios[-1]:.2f}x")
     same = all(a.events == b.events for a, b in zip(results[1], results[2], strict=True))
-    print(f"speed-up of 2 workers over 1: {times[1] / times[2]:.2f}x (identical results: {same})")
+    print(f"speed-up of 2 workers over 1: median {np.median(ratios):.2f}x of {len(ratios)} "
+          f"(identical results: {same})")
 
 
 def main() -> None:
@@ -108,6 +115,7 @@ def main() -> None:
     parser.add_argument("--workers", type=int, default=None)
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--layouts", type=int, default=200)
+    parser.add_argument("--repeat", type=int, default=3, help="speed-up measurements")
     parser.add_argument("--build-dir", default=str(DEFAULT_BUILD_DIR))
     parser.add_argument("--skip-run", action="store_true", help="only the speed-up")
     args = parser.parse_args()
