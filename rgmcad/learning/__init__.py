@@ -42,6 +42,7 @@ from .oracles import (
     OracleEvent,
     Problem,
     ProductOracle,
+    SlabRegion,
     ancestors,
     topological_events,
 )
@@ -55,6 +56,7 @@ __all__ = [
     "ActiveLearningResult",
     "BallRegion",
     "BoxRegion",
+    "SlabRegion",
     "ConstantModel",
     "EventAnalysis",
     "Exploration",

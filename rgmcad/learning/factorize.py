@@ -8,10 +8,10 @@ conditional model (CSPD) over a low-dimensional subspace ``D_i``:
   ``E_i`` is not None (the paper's rule plus the authors' "resolved" filter);
 * quasi-deterministic events (success rate >= ``quasi_deterministic_rate``) get probability 1
   and no model;
-* the others keep the dimensions whose mutual information with ``E_i`` exceeds
-  ``mi_relative_threshold * max MI`` and the chance level of permuted labels (see
-  :class:`~rgmcad.learning.settings.LearningSettings` for why), and get a classifier trained
-  by active learning on that subspace;
+* the others keep the dimensions that carry information about ``E_i``: by default a
+  forward selection on the joint mutual information against a permutation null (see
+  :func:`select_dimensions`; the authors' per-dimension rule is ``mi_selection =
+  "marginal"``), and get a classifier trained by active learning on that subspace;
 * an uncertain event with no informative dimension gets a constant probability, its
   smoothed success rate (the authors give it none, i.e. 1).
 
@@ -26,6 +26,8 @@ from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.spatial import cKDTree
+from scipy.special import digamma
 from sklearn.feature_selection import mutual_info_classif
 
 from .active import learn_active
@@ -41,6 +43,7 @@ __all__ = [
     "SPDFit",
     "event_dataset",
     "global_dataset",
+    "joint_mutual_information",
     "select_dimensions",
     "analyse_event",
     "smooth_min",
@@ -121,29 +124,108 @@ def global_dataset(X: np.ndarray, labels: Sequence[Label]) -> tuple[np.ndarray, 
     )
 
 
+def joint_mutual_information(Z: np.ndarray, y: np.ndarray, n_neighbors: int = 3) -> float:
+    """k-NN estimate (nats) of the mutual information between continuous features ``Z``
+    (n, k) and a discrete label ``y`` (n,) (Ross 2014, the estimator scikit-learn applies
+    to one feature at a time, here on all columns jointly, max-norm):
+    ``psi(n) + psi(k) - <psi(n_y)> - <psi(m_i)>``, where ``m_i`` counts the samples closer
+    to sample ``i`` than its k-th neighbour of the same class. Columns should be on
+    comparable scales and free of ties (see :func:`select_dimensions`). Clipped at 0.
+    """
+    Z = np.asarray(Z, dtype=float).reshape(len(y), -1)
+    y = np.asarray(y)
+    n = len(y)
+    radius = np.empty(n)
+    class_size = np.empty(n)
+    for c in np.unique(y):
+        members = y == c
+        size = int(members.sum())
+        class_size[members] = size
+        if size < 2:  # a lone sample: no neighbour of its class (sklearn drops such samples)
+            radius[members] = 0.0
+            continue
+        k = min(n_neighbors, size - 1)
+        dist, _ = cKDTree(Z[members]).query(Z[members], k=k + 1, p=np.inf)
+        radius[members] = np.nextafter(dist[:, -1], 0.0)
+    counts = cKDTree(Z).query_ball_point(Z, radius, p=np.inf, return_length=True)
+    keep = class_size > 1
+    if not keep.any():
+        return 0.0
+    k = min(n_neighbors, int(class_size[keep].min()) - 1)
+    mi = (digamma(keep.sum()) + digamma(k) - np.mean(digamma(class_size[keep]))
+          - np.mean(digamma(np.asarray(counts)[keep])))
+    return max(0.0, float(mi))
+
+
 def select_dimensions(
     X: np.ndarray, y: np.ndarray, settings: LearningSettings, random_state: int
 ) -> tuple[tuple[int, ...], np.ndarray, float]:
-    """Dimensions whose mutual information with the binary label is high enough.
+    """Dimensions that carry information about the binary label ``y``.
 
-    Keeps ``j`` iff ``MI_j > mi_relative_threshold * max(MI)`` (the authors' rule) and
-    ``MI_j > floor``, where ``floor`` is the largest MI of any dimension against the label
-    permuted ``mi_null_permutations`` times (chance level). k-NN estimator with
-    ``mi_neighbors`` neighbours; permutations and estimator jitter seeded by
+    ``settings.mi_selection == "forward"`` (default): greedy forward selection on the
+    *joint* mutual information. Starting from no dimension, add the ``j`` that maximises
+    ``I(y; x_S, x_j)`` while its gain over ``I(y; x_S)`` beats chance: the largest gain any
+    remaining dimension reaches with its column permuted (``mi_null_permutations`` times;
+    the permutation keeps its distribution and breaks its link to ``y`` and ``x_S``).
+    Unlike the per-dimension rule, this finds parameters that matter only jointly with
+    another (the landing point of a ball depends on the track's height *given* its x).
+
+    ``"marginal"``: the authors' rule, ``MI_j > mi_relative_threshold * max(MI)`` on each
+    dimension alone, and ``MI_j`` above the largest MI of any dimension against the label
+    permuted ``mi_null_permutations`` times.
+
+    Features are scaled to unit standard deviation with a tiny seeded jitter (ties would
+    break the k-NN estimator), as scikit-learn does; permutations and jitter are seeded by
     ``random_state``.
 
     Returns
     -------
     dims : tuple of int
-        Possibly empty.
+        Possibly empty, ascending.
     mi : (d,) float
-        The estimates, in nats.
+        Each dimension's own mutual information with ``y`` (nats).
     floor : float
-        The chance level (0 without permutations).
+        The chance level of the last test (0 without permutations).
     """
     y = np.asarray(y, dtype=bool)
+    d = X.shape[1]
     if len(y) < 2 or y.all() or not y.any():
-        return (), np.zeros(X.shape[1]), 0.0
+        return (), np.zeros(d), 0.0
+    rng = np.random.default_rng(random_state)
+    if settings.mi_selection == "marginal":
+        return _select_marginal(X, y, settings, random_state, rng)
+
+    std = X.std(axis=0)
+    Z = X / np.where(std > 0, std, 1.0)
+    Z = Z + 1e-10 * np.maximum(1.0, np.abs(Z).mean(axis=0)) * rng.standard_normal(Z.shape)
+    k = settings.mi_neighbors
+
+    def mi_with(selected, column):
+        return joint_mutual_information(np.column_stack([Z[:, selected], column]), y, k)
+
+    selected: list[int] = []
+    current = 0.0
+    single = np.zeros(d)
+    floor = 0.0
+    while len(selected) < d:
+        rest = [j for j in range(d) if j not in selected]
+        scores = np.array([mi_with(selected, Z[:, j]) for j in rest])
+        if not selected:
+            single[rest] = scores
+        best = int(np.argmax(scores))
+        floor = 0.0
+        for _ in range(settings.mi_null_permutations):
+            for j in rest:
+                floor = max(floor, mi_with(selected, rng.permutation(Z[:, j])) - current)
+        if scores[best] - current <= floor or scores[best] <= current:
+            break
+        selected.append(rest[best])
+        current = float(scores[best])
+    return tuple(sorted(selected)), single, floor
+
+
+def _select_marginal(X, y, settings, random_state, rng):
+    """The authors' per-dimension rule (see :func:`select_dimensions`)."""
 
     def mi_of(labels, seed):
         return mutual_info_classif(
@@ -151,11 +233,10 @@ def select_dimensions(
             random_state=seed,
         )
 
-    perm_rng = np.random.default_rng(random_state)
     mi = mi_of(y, random_state)
     floor = 0.0
     for k in range(settings.mi_null_permutations):
-        floor = max(floor, float(mi_of(perm_rng.permutation(y), random_state + k + 1).max()))
+        floor = max(floor, float(mi_of(rng.permutation(y), random_state + k + 1).max()))
     keep = (mi > settings.mi_relative_threshold * float(mi.max())) & (mi > floor)
     return tuple(int(j) for j in np.flatnonzero(keep)), mi, floor
 

@@ -142,6 +142,10 @@ class BoxRegion:
     lo: tuple[float, ...]
     hi: tuple[float, ...]
 
+    @property
+    def dimension(self) -> int:
+        return len(self.lo)
+
     def signed_distance(self, Z: np.ndarray) -> np.ndarray:
         """(n,) Euclidean distance to the box boundary, positive inside, negative outside."""
         Z = np.atleast_2d(Z)
@@ -163,10 +167,40 @@ class BallRegion:
     centre: tuple[float, ...]
     radius: float
 
+    @property
+    def dimension(self) -> int:
+        return len(self.centre)
+
     def signed_distance(self, Z: np.ndarray) -> np.ndarray:
         """(n,) distance to the sphere, positive inside, negative outside."""
         Z = np.atleast_2d(Z)
         return self.radius - np.linalg.norm(Z - np.asarray(self.centre), axis=1)
+
+    def contains(self, Z: np.ndarray) -> np.ndarray:
+        return self.signed_distance(Z) >= 0
+
+
+@dataclass(frozen=True)
+class SlabRegion:
+    """Slab ``|n . z - offset| <= half_width`` over a subset of the dimensions, ``n`` the
+    unit vector along ``normal``. Tilted slabs make dimensions that matter only jointly:
+    with ``normal = (1, -0.3)``, ``P(success | z_1)`` is the same for every ``z_1`` away from
+    the faces of the cube, yet ``z_1`` moves the region."""
+
+    normal: tuple[float, ...]
+    offset: float
+    half_width: float
+
+    @property
+    def dimension(self) -> int:
+        return len(self.normal)
+
+    def signed_distance(self, Z: np.ndarray) -> np.ndarray:
+        """(n,) distance to the nearer face, positive inside."""
+        Z = np.atleast_2d(Z)
+        n = np.asarray(self.normal, dtype=float)
+        n = n / np.linalg.norm(n)
+        return self.half_width - np.abs(Z @ n - self.offset)
 
     def contains(self, Z: np.ndarray) -> np.ndarray:
         return self.signed_distance(Z) >= 0
@@ -182,13 +216,13 @@ class OracleEvent:
         Events that must succeed before this one can happen.
     dims : tuple of int
         Dimensions the event depends on (its true subspace); empty = always succeeds.
-    region : BoxRegion or BallRegion or None
+    region : BoxRegion, BallRegion, SlabRegion or None
         Success region over ``dims``; None = always succeeds once the parents did.
     """
 
     parents: tuple[str, ...] = ()
     dims: tuple[int, ...] = ()
-    region: BoxRegion | BallRegion | None = None
+    region: BoxRegion | BallRegion | SlabRegion | None = None
 
 
 @dataclass(frozen=True)
@@ -231,9 +265,7 @@ class ProductOracle:
         topological_events(parents)  # validates the graph
         for name, ev in self.events.items():
             if ev.region is not None:
-                n_reg = len(ev.region.centre) if isinstance(ev.region, BallRegion) else len(
-                    ev.region.lo
-                )
+                n_reg = ev.region.dimension
                 if n_reg != len(ev.dims):
                     raise ValueError(
                         f"event {name!r}: region has {n_reg} dimensions but dims={ev.dims}"
