@@ -153,11 +153,12 @@ class ScenarioProblem:
 
         return values_from_vector(self.scenario, np.asarray(x, dtype=float))
 
-    def _validity(self, x):
+    def _validity(self, x, stop_at_first: bool = False):
         from rgmcad.scene import make_scene
         from rgmcad.validity import check_validity
 
-        return check_validity(make_scene(self.scenario, self.values(x), self.parts))
+        return check_validity(make_scene(self.scenario, self.values(x), self.parts),
+                              stop_at_first=stop_at_first)
 
     # --- Problem protocol -----------------------------------------------------------------
 
@@ -192,4 +193,4 @@ class ScenarioProblem:
     def is_valid(self, x: np.ndarray) -> bool:
         """Whether the design vector ``x`` (d,) is physically valid (one row of
         :meth:`validity`, for executors that map over rows)."""
-        return bool(self._validity(np.asarray(x, dtype=float).reshape(-1)).valid)
+        return bool(self._validity(np.asarray(x, dtype=float).reshape(-1), True).valid)

@@ -65,38 +65,33 @@ def _manifold(body: SceneBody) -> manifold3d.Manifold:
     return cached[1]
 
 
-def _world_box(body: SceneBody) -> np.ndarray:
-    """(2, 3) world bounding box of the body's local bounding box corners (conservative)."""
-    lo, hi = np.asarray(body.built.bbox, float)
-    corners = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1])
-                        for z in (lo[2], hi[2])])
-    pts = transform_points(body.pose, corners)
-    return np.stack([pts.min(axis=0), pts.max(axis=0)])
+def _oriented_boxes(bodies: list[SceneBody]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """World centres (n, 3), half extents (n, 3) and axes (n, 3, 3; columns) of the bodies'
+    local bounding boxes."""
+    lo = np.array([b.built.bbox[0] for b in bodies], float)
+    hi = np.array([b.built.bbox[1] for b in bodies], float)
+    rot = np.stack([b.pose[:3, :3] for b in bodies])
+    centres = np.einsum("nij,nj->ni", rot, (lo + hi) / 2) + np.stack([b.pose[:3, 3] for b in bodies])
+    return centres, (hi - lo) / 2, rot
 
 
-def _boxes_apart(a: SceneBody, b: SceneBody, margin: float) -> bool:
-    """True when the bodies' oriented bounding boxes are separated by more than ``-margin``
-    (separating-axis test on the 15 axes of two boxes): a cheap exact reason to skip a pair."""
-    centres, halves, axes = [], [], []
-    for body in (a, b):
-        lo, hi = np.asarray(body.built.bbox, float)
-        rot = body.pose[:3, :3]
-        centres.append(body.pose[:3, :3] @ ((lo + hi) / 2) + body.pose[:3, 3])
-        halves.append((hi - lo) / 2)
-        axes.append(rot)
-    d = centres[1] - centres[0]
-    ra, rb = axes
-    candidates = [ra[:, i] for i in range(3)] + [rb[:, i] for i in range(3)]
-    candidates += [np.cross(ra[:, i], rb[:, j]) for i in range(3) for j in range(3)]
-    for axis in candidates:
-        n = np.linalg.norm(axis)
-        if n < 1e-9:
-            continue
-        axis = axis / n
-        reach = (np.abs(ra.T @ axis) @ halves[0]) + (np.abs(rb.T @ axis) @ halves[1])
-        if abs(d @ axis) > reach - margin:
-            return True
-    return False
+def _boxes_apart(centres, halves, rot, first, second, margin: float) -> np.ndarray:
+    """(p,) bool: whether the oriented boxes of each pair ``(first[k], second[k])`` are
+    separated by more than ``-margin`` (separating-axis test on the 15 axes of two boxes,
+    all pairs at once): a cheap exact reason to skip a pair."""
+    ra, rb = rot[first], rot[second]  # (p, 3, 3), axes as columns
+    axes = np.concatenate([
+        ra.transpose(0, 2, 1), rb.transpose(0, 2, 1),
+        np.cross(ra.transpose(0, 2, 1)[:, :, None, :], rb.transpose(0, 2, 1)[:, None, :, :])
+        .reshape(-1, 9, 3),
+    ], axis=1)  # (p, 15, 3)
+    norm = np.linalg.norm(axes, axis=2)
+    usable = norm > 1e-9
+    axes = axes / np.where(usable, norm, 1.0)[..., None]
+    reach = (np.abs(np.einsum("pkj,pji->pki", axes, ra)) @ halves[first][..., None])[..., 0] + (
+        np.abs(np.einsum("pkj,pji->pki", axes, rb)) @ halves[second][..., None])[..., 0]
+    gap = np.abs(np.einsum("pkj,pj->pk", axes, centres[second] - centres[first]))
+    return np.any(usable & (gap > reach - margin), axis=1)
 
 
 def _signed_distance(point: np.ndarray, piece) -> float:
@@ -141,37 +136,55 @@ def thickness(points: np.ndarray) -> float:
     return float(proj.max() - proj.min())
 
 
-def check_validity(scene: Scene, tolerance: float = TOLERANCE) -> Validity:
-    """Test every pair of bodies that may collide; see the module docstring."""
+def check_validity(
+    scene: Scene, tolerance: float = TOLERANCE, stop_at_first: bool = False
+) -> Validity:
+    """Test every pair of bodies that may collide; see the module docstring.
+
+    With ``stop_at_first`` the test returns at the first penetration found (``overlaps``
+    then holds that one): enough for a yes/no answer, and most random layouts of a crowded
+    scene are invalid.
+    """
     solids = [b for b in scene.bodies.values() if not b.plane]
     planes = [b for b in scene.bodies.values() if b.plane]
     excluded = scene.jointed_pairs()
     overlaps: list[Overlap] = []
     tested = 0
+    if not solids:
+        return Validity(True, (), 0)
+    centres, halves, rot = _oriented_boxes(solids)
 
     for plane in planes:
         normal = plane.pose[:3, 2]
         origin = plane.pose[:3, 3]
-        for body in solids:
+        # lowest point of each oriented box along the plane's normal
+        lowest = (centres - origin) @ normal - np.einsum(
+            "ni,ni->n", np.abs(np.einsum("nji,j->ni", rot, normal)), halves
+        )
+        for k in np.flatnonzero(lowest < -tolerance):
+            body = solids[k]
             if frozenset((plane.name, body.name)) in excluded:
-                continue
-            box = _world_box(body)
-            corners = np.array([[x, y, z] for x in box[:, 0] for y in box[:, 1] for z in box[:, 2]])
-            if ((corners - origin) @ normal).min() >= -tolerance:
                 continue
             tested += 1
             depth = -float(((body.world_vertices() - origin) @ normal).min())
             if depth > tolerance:
                 overlaps.append(Overlap(plane.name, body.name, depth, 0.0))
+                if stop_at_first:
+                    return Validity(False, tuple(overlaps), tested)
 
     if len(solids) > 1:
-        boxes = np.stack([_world_box(b) for b in solids])  # (n, 2, 3)
-        lo, hi = boxes[:, 0] + tolerance / 2, boxes[:, 1] - tolerance / 2
+        reach = np.abs(rot) @ halves[..., None]  # (n, 3, 1): half extents of the world box
+        lo = centres - reach[..., 0] + tolerance / 2
+        hi = centres + reach[..., 0] - tolerance / 2
         hits = np.all((lo[:, None, :] < hi[None, :, :]) & (lo[None, :, :] < hi[:, None, :]), axis=2)
-        for i, j in zip(*np.nonzero(np.triu(hits, k=1)), strict=True):
+        pairs = [(i, j) for i, j in zip(*np.nonzero(np.triu(hits, k=1)), strict=True)
+                 if frozenset((solids[i].name, solids[j].name)) not in excluded]
+        if pairs:
+            first, second = np.array(pairs).T
+            apart = _boxes_apart(centres, halves, rot, first, second, tolerance)
+            pairs = [p for p, skip in zip(pairs, apart, strict=True) if not skip]
+        for i, j in pairs:
             a, b = solids[i], solids[j]
-            if frozenset((a.name, b.name)) in excluded or _boxes_apart(a, b, tolerance):
-                continue
             tested += 1
             depth = _ball_depth(a, b)
             if depth is None:
@@ -179,6 +192,8 @@ def check_validity(scene: Scene, tolerance: float = TOLERANCE) -> Validity:
             if depth is not None:
                 if depth > tolerance:
                     overlaps.append(Overlap(a.name, b.name, depth, 0.0))
+                    if stop_at_first:
+                        break
                 continue
             inter = (_manifold(a).transform(a.pose[:3, :4])
                      ^ _manifold(b).transform(b.pose[:3, :4]))
@@ -190,4 +205,6 @@ def check_validity(scene: Scene, tolerance: float = TOLERANCE) -> Validity:
             depth = thickness(np.asarray(inter.to_mesh().vert_properties)[:, :3].astype(float))
             if depth > tolerance:
                 overlaps.append(Overlap(a.name, b.name, depth, volume))
+                if stop_at_first:
+                    break
     return Validity(not overlaps, tuple(overlaps), tested)

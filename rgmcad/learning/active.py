@@ -155,12 +155,10 @@ def learn_active(
     ``settings.active_max_iter`` iterations (the paper prints the loop test inverted; this is
     the code's and the text's meaning). The hyper-parameters are grid-searched on the
     initial data, and again only once the data has grown by more than
-    ``settings.search_growth`` since the last search; other refits keep them and cost ``calibration_folds + 1`` SVM fits (the
-    out-of-fold values give both the accuracy and Platt's calibration) instead of the
-    search's hundreds. The authors searched at every iteration and once more at the end;
-    the queries add at most ``active_max_iter * active_batch`` points to data sets of
-    hundreds, and on BALLRUN the search was 98 % of the time outside simulation.
-    The last fit is the final calibrated model.
+    ``settings.search_growth`` since the last search; other refits keep them and cost
+    ``calibration_folds + 1`` SVM fits (the out-of-fold values give both the accuracy and
+    Platt's calibration) instead of the search's hundreds. The authors searched at every
+    iteration and once more at the end. The last fit is the final calibrated model.
 
     Parameters
     ----------
