@@ -10,7 +10,7 @@
    throughput, pool start included).
 
     uv run python tools/bench_optimize.py [--scenario scenarios/ballrun.toml]
-        [--budget default] [--workers 2] [--seed 0] [--layouts 200] [--repeat 3] [--skip-run]
+        [--budget default] [--workers 2] [--seed 0] [--layouts 200] [--repeat 3] [--skip-run | --skip-speedup]
 """
 
 import argparse
@@ -118,9 +118,11 @@ def main() -> None:
     parser.add_argument("--repeat", type=int, default=3, help="speed-up measurements")
     parser.add_argument("--build-dir", default=str(DEFAULT_BUILD_DIR))
     parser.add_argument("--skip-run", action="store_true", help="only the speed-up")
+    parser.add_argument("--skip-speedup", action="store_true", help="only the run")
     args = parser.parse_args()
     np.seterr(all="ignore")
-    speedup(args)
+    if not args.skip_speedup:
+        speedup(args)
     if not args.skip_run:
         overhead(args)
 

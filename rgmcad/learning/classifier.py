@@ -112,7 +112,7 @@ class SuccessClassifier(ClassifierMixin, BaseEstimator):
         dims=None,
         C_grid=_LOG_GRID,
         gamma_grid=_LOG_GRID,
-        class_weights=(None, "balanced"),
+        class_weights=(None,),
         cv_folds=3,
         calibration_folds=5,
         n_jobs=None,
