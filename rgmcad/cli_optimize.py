@@ -30,7 +30,8 @@ def budget(name: str):
     ``default`` is the settings behind the paper's Table 1 (SPEC 5.7; every default of
     ``LearningSettings`` is documented there). ``small`` is a quick look for trying a scenario
     out and for tests, not for results: N0 = 100 Sobol points, N+ = 20, at most 50
-    exploration and 2 active-learning iterations, a 4 x 4 SVM grid, 16 placement errors.
+    exploration and 2 active-learning iterations, a 4 x 4 SVM grid, 16 placement errors,
+    8 errors per candidate in the final choice.
     """
     from rgmcad.learning import LearningSettings
 
@@ -41,7 +42,7 @@ def budget(name: str):
             n_initial=100, n_successes=20, exploration_max_iter=50, active_batch=10,
             active_max_iter=2, svm_C_grid=(0.1, 1.0, 10.0, 100.0),
             svm_gamma_grid=(0.1, 1.0, 10.0, 100.0), placement_samples=16,
-            optimizer_max_eval=200,
+            optimizer_max_eval=200, verify_samples=8,
         )
     raise ValueError(f"unknown budget {name!r}; valid: {', '.join(BUDGETS)}")
 
@@ -190,20 +191,26 @@ def cmd_optimize(args) -> int:
 
 
 def _verify(recorded, result) -> dict:
-    """Simulate the optimum; if it fails, fall back to the successful simulated layout with
-    the highest predicted success."""
-    record = recorded.simulate_records(result.x[None, :])[0]
-    if record.outcome == "success":
-        return {"x": result.x, "source": "optimum", "verified": True,
-                "optimum_outcome": record.outcome}
-    ok = [i for i, lab in enumerate(result.labels) if lab.success]
-    if ok:
-        i = ok[int(np.argmax(result.model.success_proba(result.X[ok])))]
-        return {"x": result.X[i], "source": f"simulated sample #{i} (the optimum's simulation "
-                f"gave {record.outcome})", "verified": True, "optimum_outcome": record.outcome}
-    return {"x": result.x, "source": f"optimum, unverified: its simulation gave "
-            f"{record.outcome} and no simulated layout succeeded", "verified": False,
-            "optimum_outcome": record.outcome}
+    """The layout to hand out: see :mod:`rgmcad.learning.verify`."""
+    from rgmcad.learning import verify_layout
+
+    v = verify_layout(result.model, result.x, result.X, result.labels, recorded.simulate,
+                      recorded.validity, result.settings)
+    c = v.chosen
+    if not v.verified:
+        source = (f"optimum, unverified: its simulation gave {v.optimum.outcome} and no "
+                  "simulated layout succeeded")
+    elif c.source == "optimum":
+        source = "optimum"
+    elif v.optimum.outcome != "success":
+        source = f"{c.source} (the optimum's simulation gave {v.optimum.outcome})"
+    else:
+        source = f"{c.source} (more robust than the optimum under placement errors)"
+    return {"x": c.x, "source": source, "verified": v.verified,
+            "optimum_outcome": v.optimum.outcome, "n_simulations": v.n_simulations,
+            "candidates": [{"source": t.source, "vector": [float(u) for u in t.x],
+                            "success_rate": t.success_rate, "valid_copies": t.n_valid}
+                           for t in v.candidates]}
 
 
 def _influence(model, x: np.ndarray) -> np.ndarray:
@@ -230,7 +237,7 @@ def _write_outputs(scenario, args, store, recorded, result, chosen, wall_time) -
     probability = float(model.success_proba(x)[0])
     weakest = min(per_event, key=per_event.get) if per_event else None
     tol = placement_tolerance(model, x, result.settings) if chosen["source"] != "optimum" \
-        else result.tolerances
+        else result.tolerances  # the chosen layout may not be the optimum
     tolerances = {f.name: [float(tol[j, 0] * (high[j] - low[j])),
                            float(tol[j, 1] * (high[j] - low[j]))]
                   for j, f in enumerate(scenario.free)}
@@ -244,7 +251,7 @@ def _write_outputs(scenario, args, store, recorded, result, chosen, wall_time) -
         scenario, result.x_start, probability=float(result.probability_start),
         source="the explored sample with the highest predicted success (start of the "
                "refinement)"))
-    n_total = result.n_total_simulations + 1  # + the verification of the optimum
+    n_total = result.n_total_simulations + chosen["n_simulations"]
     n_success = sum(lab.success for lab in result.labels)
     summary = {
         "scenario": scenario.name,
@@ -269,7 +276,10 @@ def _write_outputs(scenario, args, store, recorded, result, chosen, wall_time) -
                          "evaluations": result.optimization.n_evaluations,
                          "status": result.optimization.status},
         "simulations": n_total,
-        "simulations_by_stage": {**result.n_simulations, "verification": 1},
+        "simulations_by_stage": {**result.n_simulations,
+                                 "verification": chosen["n_simulations"]},
+        "verification": chosen["candidates"],
+        "verify_noise": result.settings.verify_noise,
         "successes": int(n_success),
         "discarded": result.n_discarded,
         "simulated_now": recorded.n_simulated,
@@ -358,6 +368,15 @@ def _report(scenario, s: dict, low, high) -> str:
         down, up = s["tolerances"][f.name]
         lines.append(f"| {f.name} | {s['values'][f.name] * k:.2f} {unit} | {down * k:.2f} | "
                      f"{up * k:.2f} | [{low[j] * k:.2f}, {high[j] * k:.2f}] |")
+    if s.get("verification"):
+        lines += ["", "## Choice of the layout", "",
+                  "Each candidate succeeded in simulation; then it was simulated at placement "
+                  "errors (Gaussian, standard deviation "
+                  f"{s['verify_noise']:g} of each range) and the one that succeeded most often "
+                  "was kept.", "", "| candidate | success under errors | valid copies |",
+                  "|---|---|---|"]
+        for c in s["verification"]:
+            lines.append(f"| {c['source']} | {c['success_rate']:.2f} | {c['valid_copies']} |")
     lines += ["", "## Plots", "", f"![probability slice]({SLICE_PLOT})", "",
               f"![exploration]({PROGRESS_PLOT})", ""]
     return "\n".join(lines)

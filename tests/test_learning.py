@@ -33,6 +33,7 @@ from rgmcad.learning import (
     select_dimensions,
     smooth_min,
     topological_events,
+    verify_layout,
 )
 
 # A small grid keeps each SVM fit under half a second; the defaults use the authors' 98.
@@ -483,3 +484,38 @@ def test_queries_avoid_layouts_where_the_parents_fail():
     )
     assert filtered.n_simulations["active:land"] == unfiltered.n_simulations["active:land"] == 40
     assert filtered.n_discarded <= 2 < 8 <= unfiltered.n_discarded  # measured 0 and 16
+
+
+# --- choice of the final layout -----------------------------------------------------------
+
+
+def test_final_choice_prefers_the_layout_that_survives_placement_errors():
+    oracle = disc_oracle(d=2)  # success iff within 0.3 of (0.5, 0.5)
+    model = disc_model()
+    X = np.array([[0.5, 0.5], [0.53, 0.46], [0.9, 0.9]])
+    labels = oracle.simulate(X)
+    settings = FAST.replace(verify_samples=32, verify_noise=0.05)
+
+    def check(x_opt, X, labels, settings=settings):
+        return verify_layout(model, np.array(x_opt), X, labels, oracle.simulate,
+                             oracle.validity, settings)
+
+    fragile = check([0.5, 0.79], X, labels)  # succeeds, 0.01 inside the edge
+    assert fragile.optimum.outcome == "success"
+    assert fragile.candidates[0].source == "optimum"
+    assert fragile.candidates[0].success_rate < 0.8
+    assert fragile.chosen.source.startswith("simulated sample #")
+    assert fragile.chosen.success_rate == 1.0 and fragile.verified
+    assert fragile.n_simulations == 1 + sum(c.n_valid for c in fragile.candidates)
+
+    deep = check([0.5, 0.5 + 1e-3], X, labels)
+    assert deep.chosen.source == "optimum"  # ties go to the optimum
+
+    failed = check([0.95, 0.95], X, labels)
+    assert failed.optimum.outcome == "failure" and failed.chosen.outcome == "success"
+
+    nothing = check([0.95, 0.95], X[2:], labels[2:])
+    assert not nothing.verified and nothing.chosen.source == "optimum"
+
+    paper = check([0.5, 0.79], X, labels, settings.replace(verify_samples=0))
+    assert paper.chosen.source == "optimum" and paper.candidates == ()

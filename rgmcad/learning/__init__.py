@@ -49,12 +49,14 @@ from .oracles import (
 from .pipeline import LearningResult, Progress, learn_and_optimize
 from .sampling import Exploration, SobolStream, explore, first_valid, sample_mixture
 from .settings import LearningSettings
+from .verify import Candidate, Verification, verify_layout
 
 logging.getLogger(__name__).addHandler(logging.NullHandler())
 
 __all__ = [
     "ActiveLearningResult",
     "BallRegion",
+    "Candidate",
     "BoxRegion",
     "SlabRegion",
     "ConstantModel",
@@ -73,6 +75,7 @@ __all__ = [
     "SPDModel",
     "SobolStream",
     "SuccessClassifier",
+    "Verification",
     "analyse_event",
     "ancestors",
     "event_dataset",
@@ -92,4 +95,5 @@ __all__ = [
     "start_point",
     "synthesize_queries",
     "topological_events",
+    "verify_layout",
 ]
