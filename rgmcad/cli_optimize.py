@@ -174,8 +174,8 @@ def cmd_optimize(args) -> int:
         bar = _Bar()
         try:
             recorded = RecordedProblem(problem, store, executor, bar.simulation)
-            # The pool is idle while the SVMs train: give their grid search the same CPUs
-            # (n_jobs changes the speed, never the result; 31 s -> 16-24 s for 1500 samples).
+            # The pool is idle while the SVMs train: give their grid search and calibration
+            # folds the same CPUs (n_jobs changes the speed, never the result).
             workers = executor.workers if executor.workers > 1 else None
             result = learn_and_optimize(recorded, settings.replace(n_jobs=workers), args.seed,
                                         on_progress=bar.progress)
