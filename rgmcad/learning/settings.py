@@ -200,12 +200,14 @@ class LearningSettings:
         succeeds, then the simulated global successes the model rates highest); see
         :mod:`rgmcad.learning.verify`.
     verify_samples : int, default 32
-        Placement errors simulated per candidate (a power of two); 0 keeps the paper's
-        choice (the optimum if its one simulation succeeds). The refinement maximises the
-        model's prediction, and on BALLRUN the optimum failed its own simulation in 5 of 9
-        runs while the model still rated it 0.67-0.88; choosing among the optimum and
-        three alternatives by simulated success under errors costs 4 x 32 simulations
-        (about 8 % of a BALLRUN run).
+        Placement errors simulated per candidate (rounded up to a power of two); 0 keeps
+        the paper's choice (the optimum if its one simulation succeeds, else the best rated
+        simulated success). Why: the refinement maximises the model's prediction, which
+        can be confidently wrong. On BALLRUN (default settings, seeds 0-2) the optimum
+        failed its own simulation once and, where it succeeded, survived the 32 errors in
+        32-33 % of the valid copies against 57-69 % for the best alternative; choosing by
+        simulation raised the mean global robustness rho_g of the returned layout from
+        0.163 to 0.216 (SIMPLE: 0.424 to 0.427), for 71-129 more simulations (4-8 %).
     verify_noise : float, default 0.05
         Standard deviation (normalised units) of those placement errors, the same as
         ``placement_noise`` by default.
