@@ -341,6 +341,18 @@ def test_forward_selection_finds_dimensions_that_matter_only_jointly(seed):
     assert marginal == (0,)  # the per-dimension rule misses x1
 
 
+def test_selection_falls_back_to_all_dimensions_when_only_their_combination_informs():
+    # A checkerboard: neither x0 nor x1 says anything alone, both decide together.
+    X = np.random.default_rng(3).random((600, 3))
+    y = (X[:, 0] > 0.5) == (X[:, 1] > 0.5)
+    dims, single, _ = select_dimensions(X, y, FAST, 3)
+    assert single.max() < 0.05
+    assert {0, 1} <= set(dims)
+    # and a label independent of x gets no dimension
+    noise = np.random.default_rng(4).random(600) < 0.5
+    assert select_dimensions(X, noise, FAST, 3)[0] == ()
+
+
 # --- optimisation and tolerances ----------------------------------------------------------
 
 
