@@ -5,10 +5,13 @@ exploration (:func:`explore`), SVM classifiers with Platt-calibrated probabiliti
 (:class:`SuccessClassifier`), active learning (:func:`learn_active`), factorisation of the
 success probability over the causal graph (:func:`fit_spd`), constrained refinement
 (:func:`maximize_robustness`) and placement tolerances (:func:`placement_tolerance`).
-:func:`learn_and_optimize` runs them all on a :class:`Problem`.
+:func:`learn_and_optimize` runs them all on a :class:`Problem`; :func:`verify_layout` then
+lets the simulator choose the layout to return among the optimum and the best-rated
+simulated successes.
 
 Modules, in pipeline order: ``settings``, ``oracles`` (the simulator protocol and synthetic
-problems), ``sampling``, ``classifier``, ``active``, ``factorize``, ``optimize``, ``pipeline``.
+problems), ``sampling``, ``classifier``, ``active``, ``factorize``, ``optimize``, ``pipeline``,
+``verify``.
 """
 
 import logging
