@@ -124,18 +124,40 @@ def synthesize_queries(
         classifier, X_train, settings.query_variance_scale
     )
     cands = sample_mixture(means, weights, variances, settings.max_draws_factor * n_pool, rng)
+    pool = None
     if accept is not None:
-        ok = np.asarray(accept(cands), dtype=bool)
-        if ok.any():
-            cands = cands[ok]
-        else:
+        pool, n_tested = _first_valid_accepted(cands, accept, validity, n_pool, 10 * n_pool)
+        if pool is None:
             logger.info("active learning: no candidate passed the parent filter; ignoring it")
-    pool, n_tested = first_valid(cands, validity, n_pool)
+    if pool is None:
+        pool, n_tested = first_valid(cands, validity, n_pool)
     if len(pool) == 0:
         return pool, n_tested
     score = np.abs(classifier.decision_function(pool))
     keep = np.argsort(score, kind="stable")[:n_queries]
     return pool[np.sort(keep)], n_tested
+
+
+def _first_valid_accepted(cands, accept, validity, n, chunk):
+    """:func:`first_valid` over the rows ``accept`` keeps, the filter applied ``chunk`` rows
+    at a time and only as far as needed (the same rows as filtering everything first);
+    ``(None, 0)`` when it keeps no row at all."""
+    kept, n_kept, n_tested, any_kept = [], 0, 0, False
+    for start in range(0, len(cands), chunk):
+        block = cands[start : start + chunk]
+        block = block[np.asarray(accept(block), dtype=bool)]
+        if len(block) == 0:
+            continue
+        any_kept = True
+        rows, tested = first_valid(block, validity, n - n_kept)
+        kept.append(rows)
+        n_kept += len(rows)
+        n_tested += tested
+        if n_kept >= n:
+            break
+    if not any_kept:
+        return None, 0
+    return np.vstack(kept), n_tested
 
 
 def learn_active(

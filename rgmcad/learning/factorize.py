@@ -26,6 +26,7 @@ from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
+from joblib import Parallel, delayed
 from scipy.spatial import cKDTree
 from scipy.special import digamma
 from sklearn.feature_selection import mutual_info_classif
@@ -204,8 +205,12 @@ def select_dimensions(
     Z = Z + 1e-10 * np.maximum(1.0, np.abs(Z).mean(axis=0)) * rng.standard_normal(Z.shape)
     k = settings.mi_neighbors
 
-    def mi_with(selected, column):
-        return joint_mutual_information(np.column_stack([Z[:, selected], column]), y, k)
+    def mi_of(columns_list):
+        """Joint MI of each column set with ``y`` (in processes when ``n_jobs`` > 1)."""
+        if settings.n_jobs and settings.n_jobs > 1 and len(columns_list) > 1:
+            return Parallel(n_jobs=settings.n_jobs)(
+                delayed(joint_mutual_information)(c, y, k) for c in columns_list)
+        return [joint_mutual_information(c, y, k) for c in columns_list]
 
     selected: list[int] = []
     current = 0.0
@@ -213,14 +218,16 @@ def select_dimensions(
     floor = 0.0
     while len(selected) < d:
         rest = [j for j in range(d) if j not in selected]
-        scores = np.array([mi_with(selected, Z[:, j]) for j in rest])
+        base = Z[:, selected]
+        candidates = [np.column_stack([base, Z[:, j]]) for j in rest]
+        nulls = [np.column_stack([base, rng.permutation(Z[:, j])])
+                 for _ in range(settings.mi_null_permutations) for j in rest]
+        values = mi_of(candidates + nulls)
+        scores = np.array(values[: len(rest)])
         if not selected:
             single[rest] = scores
         best = int(np.argmax(scores))
-        floor = 0.0
-        for _ in range(settings.mi_null_permutations):
-            for j in rest:
-                floor = max(floor, mi_with(selected, rng.permutation(Z[:, j])) - current)
+        floor = max([0.0] + [v - current for v in values[len(rest):]])
         if scores[best] - current <= floor or scores[best] <= current:
             break
         selected.append(rest[best])
