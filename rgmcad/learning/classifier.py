@@ -150,7 +150,8 @@ class SuccessClassifier(ClassifierMixin, BaseEstimator):
     # --- fitting -----------------------------------------------------------------------------
 
     def fit(self, X, y):
-        """Grid-search the SVM on ``(X, y)``, refit it on all data, calibrate it.
+        """Grid-search the SVM on ``(X, y)`` (unless ``params`` fixes it), calibrate it on
+        out-of-fold decision values, refit it on all data.
 
         Parameters
         ----------
