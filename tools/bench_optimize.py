@@ -33,29 +33,25 @@ from rgmcad.problem import ScenarioProblem, context
 TIMES = {"simulation": 0.0, "validity": 0.0, "penetration": 0.0}
 
 
+def _timed(kind: str, method):
+    """``method`` of RecordedProblem, adding its time to ``TIMES[kind]``."""
+
+    def wrapper(self, *args):
+        t = time.perf_counter()
+        try:
+            return method(self, *args)
+        finally:
+            TIMES[kind] += time.perf_counter() - t
+
+    return wrapper
+
+
 class TimedProblem(rgmcad.runstore.RecordedProblem):
     """RecordedProblem that adds up the time spent in each kind of call."""
 
-    def simulate_records(self, X):
-        t = time.perf_counter()
-        try:
-            return super().simulate_records(X)
-        finally:
-            TIMES["simulation"] += time.perf_counter() - t
-
-    def validity(self, X):
-        t = time.perf_counter()
-        try:
-            return super().validity(X)
-        finally:
-            TIMES["validity"] += time.perf_counter() - t
-
-    def penetration(self, x):
-        t = time.perf_counter()
-        try:
-            return super().penetration(x)
-        finally:
-            TIMES["penetration"] += time.perf_counter() - t
+    simulate_records = _timed("simulation", rgmcad.runstore.RecordedProblem.simulate_records)
+    validity = _timed("validity", rgmcad.runstore.RecordedProblem.validity)
+    penetration = _timed("penetration", rgmcad.runstore.RecordedProblem.penetration)
 
 
 def overhead(args) -> None:

@@ -228,7 +228,7 @@ def select_dimensions(
             single[rest] = scores
         best = int(np.argmax(scores))
         floor = max([0.0] + [v - current for v in values[len(rest):]])
-        if scores[best] - current <= floor or scores[best] <= current:
+        if scores[best] - current <= floor:  # floor >= 0, so a gain is required
             break
         selected.append(rest[best])
         current = float(scores[best])

@@ -129,8 +129,16 @@ def ancestors(event_parents: Mapping[str, Sequence[str]], event: str) -> tuple[s
 # --- analytic regions -------------------------------------------------------------------------
 
 
+class _Region:
+    """What the regions share: membership from the signed distance."""
+
+    def contains(self, Z: np.ndarray) -> np.ndarray:
+        """(n,) bool: inside or on the boundary."""
+        return self.signed_distance(Z) >= 0
+
+
 @dataclass(frozen=True)
-class BoxRegion:
+class BoxRegion(_Region):
     """Axis-aligned box ``lo <= z <= hi`` over a subset of the dimensions.
 
     Attributes
@@ -156,12 +164,8 @@ class BoxRegion:
         d_in = inside_margin.min(axis=1)
         return np.where(d_out > 0, -d_out, d_in)
 
-    def contains(self, Z: np.ndarray) -> np.ndarray:
-        return self.signed_distance(Z) >= 0
-
-
 @dataclass(frozen=True)
-class BallRegion:
+class BallRegion(_Region):
     """Ball ``|z - centre| <= radius`` over a subset of the dimensions."""
 
     centre: tuple[float, ...]
@@ -176,12 +180,8 @@ class BallRegion:
         Z = np.atleast_2d(Z)
         return self.radius - np.linalg.norm(Z - np.asarray(self.centre), axis=1)
 
-    def contains(self, Z: np.ndarray) -> np.ndarray:
-        return self.signed_distance(Z) >= 0
-
-
 @dataclass(frozen=True)
-class SlabRegion:
+class SlabRegion(_Region):
     """Slab ``|n . z - offset| <= half_width`` over a subset of the dimensions, ``n`` the
     unit vector along ``normal``. Tilted slabs make dimensions that matter only jointly:
     with ``normal = (1, -0.3)``, ``P(success | z_1)`` is the same for every ``z_1`` away from
@@ -201,10 +201,6 @@ class SlabRegion:
         n = np.asarray(self.normal, dtype=float)
         n = n / np.linalg.norm(n)
         return self.half_width - np.abs(Z @ n - self.offset)
-
-    def contains(self, Z: np.ndarray) -> np.ndarray:
-        return self.signed_distance(Z) >= 0
-
 
 @dataclass(frozen=True)
 class OracleEvent:
