@@ -6,9 +6,9 @@ Files::
     settings.json      what the run is: scenario name and SHA-256 of its file, seed, every
                        LearningSettings field. Written once; a later command on the same folder
                        must match it or is refused.
-    simulations.jsonl  one line per finished simulation, appended, flushed and fsynced as it
-                       arrives: {"i", "vector", "valid", "outcome", "events": {name: [label,
-                       time]}, "seconds"}.
+    simulations.jsonl  one line per finished simulation, written and flushed to the operating
+                       system as it arrives and fsynced after each batch: {"i", "vector",
+                       "valid", "outcome", "events": {name: [label, time]}, "seconds"}.
     model.pkl          the trained success model (pickle of the learner's SPDModel).
     result.json        the summary, written last (atomically): its presence means "finished".
 
@@ -18,7 +18,8 @@ already in ``simulations.jsonl`` from the file (keyed by the exact bytes of the 
 simulates only the rest. The simulator is deterministic too, so a replayed label equals the
 label a new simulation would give. A ``kill -9`` loses at most the simulations in flight; a
 line cut short by the kill has no final newline and is dropped (and cut off the file) when the
-store is opened again.
+store is opened again. A power cut or system crash can lose the batch being simulated (what
+was written but not yet fsynced); one fsync per simulation cost 1.3 s of a 80 s BALLRUN run.
 """
 
 from __future__ import annotations
@@ -162,15 +163,22 @@ class RunStore:
         """The stored simulation of the exact design vector ``x`` (d,), if any."""
         return self.records.get(_key(x))
 
-    def append(self, x, record: SimRecord) -> None:
-        """Store one finished simulation (flushed and fsynced before returning)."""
+    def append(self, x, record: SimRecord, sync: bool = True) -> None:
+        """Store one finished simulation: flushed to the operating system before returning
+        (safe from a ``kill -9``), and fsynced (safe from a power cut) unless ``sync`` is
+        False, for a caller that calls :meth:`sync` after a batch."""
         x = np.asarray(x, dtype=float)
         row = {"i": self.n_lines, "vector": x.tolist(), **record.to_json()}
         self._file.write((json.dumps(row) + "\n").encode())
         self._file.flush()
-        os.fsync(self._file.fileno())
+        if sync:
+            os.fsync(self._file.fileno())
         self.records[_key(x)] = record
         self.n_lines += 1
+
+    def sync(self) -> None:
+        """fsync the simulations written so far."""
+        os.fsync(self._file.fileno())
 
     def simulations(self) -> list[dict]:
         """Every stored line, in order (for reports and plots)."""
@@ -273,12 +281,16 @@ class RecordedProblem:
             if r is None:
                 todo.setdefault(_key(X[i]), i)
         rows = list(todo.values())
-        for i, record in zip(rows, self.executor.map(self.problem.simulate_one,
-                                                     [X[i] for i in rows]), strict=True):
-            self.store.append(X[i], record)
-            self.n_simulated += 1
-            if self.on_simulation is not None:
-                self.on_simulation(record, False)
+        try:
+            for i, record in zip(rows, self.executor.map(self.problem.simulate_one,
+                                                         [X[i] for i in rows]), strict=True):
+                self.store.append(X[i], record, sync=False)
+                self.n_simulated += 1
+                if self.on_simulation is not None:
+                    self.on_simulation(record, False)
+        finally:
+            if rows:
+                self.store.sync()
         for i, r in enumerate(records):
             if r is None:
                 records[i] = self.store.lookup(X[i])

@@ -157,6 +157,25 @@ def test_classifier_recovers_a_known_region():
     assert np.mean((P[:, 1] > 0.5) == clf.predict(G)) > 0.98
 
 
+def test_successive_halving_search_agrees_with_the_exhaustive_search():
+    oracle = disc_oracle(softness=0.05, seed=3)
+    X = np.random.default_rng(3).random((900, 3))
+    y = np.array([lab.success for lab in oracle.simulate(X)])
+    grids = dict(svm_C_grid=(0.1, 1.0, 10.0, 100.0, 1000.0), svm_gamma_grid=(0.01, 0.1, 1.0, 10.0))
+
+    def search(halving, min_train, n=len(y)):
+        settings = LearningSettings(**grids, search_halving=halving, search_min_train=min_train)
+        return SuccessClassifier.from_settings(settings, random_state=0).fit(X[:n], y[:n])
+
+    exhaustive, halved = search(1, 100), search(3, 100)
+    assert halved.best_params_ == exhaustive.best_params_
+    assert halved.search_accuracy_ == pytest.approx(exhaustive.search_accuracy_)
+    # too few rows for a first rung of min_train: the halving is the exhaustive search
+    small = search(3, 100, n=300)
+    assert small.best_params_ == search(1, 100, n=300).best_params_
+    assert small.search_accuracy_ == pytest.approx(search(1, 100, n=300).search_accuracy_)
+
+
 def test_probability_gradient_matches_finite_differences():
     clf = fit_disc(200, seed=1, dims=(0, 1))
     X = np.random.default_rng(5).uniform(0.1, 0.9, (30, 3))

@@ -67,6 +67,11 @@ class SuccessClassifier(ClassifierMixin, BaseEstimator):
         Stratified shuffled folds of the grid search.
     calibration_folds : int
         Stratified shuffled folds of the out-of-fold decision values for Platt scaling.
+    search_halving : int
+        Successive halving factor of the grid search (1 = exhaustive); see
+        ``LearningSettings.search_halving``.
+    search_min_train : int
+        Fewest training rows per fold in the first rung of the halving.
     n_jobs : int, optional
         Processes of the grid search and of the calibration folds (joblib); the result
         does not depend on it.
@@ -115,6 +120,8 @@ class SuccessClassifier(ClassifierMixin, BaseEstimator):
         class_weights=(None,),
         cv_folds=3,
         calibration_folds=5,
+        search_halving=3,
+        search_min_train=100,
         n_jobs=None,
         params=None,
         random_state=None,
@@ -125,6 +132,8 @@ class SuccessClassifier(ClassifierMixin, BaseEstimator):
         self.class_weights = class_weights
         self.cv_folds = cv_folds
         self.calibration_folds = calibration_folds
+        self.search_halving = search_halving
+        self.search_min_train = search_min_train
         self.n_jobs = n_jobs
         self.params = params
         self.random_state = random_state
@@ -142,6 +151,8 @@ class SuccessClassifier(ClassifierMixin, BaseEstimator):
             class_weights=tuple(settings.svm_class_weights),
             cv_folds=settings.cv_folds,
             calibration_folds=settings.calibration_folds,
+            search_halving=settings.search_halving,
+            search_min_train=settings.search_min_train,
             n_jobs=settings.n_jobs,
             params=None if params is None else dict(params),
             random_state=random_state,
@@ -182,7 +193,7 @@ class SuccessClassifier(ClassifierMixin, BaseEstimator):
         std = Z.std(axis=0) if len(Z) else np.ones(len(self.dims_))
         self.feature_std_ = np.where(std > 0, std, 1.0)  # as StandardScaler does
         rs = check_random_state(self.random_state)
-        seed_cv, seed_cal = (int(v) for v in rs.randint(0, 2**31 - 1, size=2))
+        seed_cv, seed_cal, seed_halving = (int(v) for v in rs.randint(0, 2**31 - 1, size=3))
 
         if min(n_pos, n_neg) < 2:
             self.constant_ = (n_pos + 1.0) / (len(y) + 2.0)
@@ -200,7 +211,8 @@ class SuccessClassifier(ClassifierMixin, BaseEstimator):
             folds = StratifiedKFold(min(self.cv_folds, min_class), shuffle=True,
                                     random_state=seed_cv)
             self.best_params_, self.search_accuracy_ = _grid_search(
-                Z, y, self.C_grid, self.gamma_grid, self.class_weights, folds, self.n_jobs
+                Z, y, self.C_grid, self.gamma_grid, self.class_weights, folds, self.n_jobs,
+                self.search_halving, self.search_min_train, seed_halving,
             )
         else:
             self.best_params_ = {k: self.params[k] for k in ("C", "gamma", "class_weight")}
@@ -224,7 +236,10 @@ class SuccessClassifier(ClassifierMixin, BaseEstimator):
 
     def _check(self, X) -> np.ndarray:
         check_is_fitted(self, "classes_")
-        X = check_array(np.atleast_2d(X), dtype=float)
+        # not check_array: its validation was 0.8 s of a BALLRUN run (3000 small calls)
+        X = np.atleast_2d(np.asarray(X, dtype=float))
+        if X.ndim != 2 or not np.isfinite(X).all():
+            raise ValueError("X must be a finite (n, d) array")
         if X.shape[1] != self.n_features_in_:
             raise ValueError(
                 f"X has {X.shape[1]} columns, the classifier was fitted on {self.n_features_in_}"
@@ -344,22 +359,67 @@ def _parallel(fn, jobs, n_jobs):
     return Parallel(n_jobs=n_jobs)(delayed(fn)(*job) for job in jobs)
 
 
-def _grid_search(Z, y, C_grid, gamma_grid, class_weights, folds, n_jobs):
+def _grid_search(Z, y, C_grid, gamma_grid, class_weights, folds, n_jobs, halving=1,
+                 min_train=100, seed=0):
     """The first setting of the grid (C, then gamma, then class weight) with the best mean
-    accuracy over ``folds``, and that accuracy. Work is split by fold and gamma."""
+    accuracy over ``folds``, and that accuracy. Work is split by fold and gamma.
+
+    With ``halving`` = eta > 1, successive halving: every setting is scored on the folds
+    with each training part cut to a stratified random subset of ``eta**-R`` of its rows,
+    the best third (``1 / eta``) of the settings is scored again on ``eta`` times more
+    rows, and so on up to the whole training parts, where the choice is made. ``R`` is the
+    largest number of rungs such that the smallest subsets keep ``min_train`` rows and each
+    rung keeps at least two settings; with ``R = 0`` this is the exhaustive search. The test
+    parts are always whole, so every score is an accuracy on the same points."""
     splits = list(folds.split(Z, y))
-    jobs = [
-        (Z, y, train, test, [{"C": float(C), "gamma": float(g), "class_weight": w}
-                             for C, w in itertools.product(C_grid, class_weights)])
-        for train, test in splits for g in gamma_grid
-    ]
-    scores = np.asarray(_parallel(_score_settings, jobs, n_jobs)).reshape(
-        len(splits), len(gamma_grid), len(C_grid), len(class_weights)
-    ).mean(axis=0).transpose(1, 0, 2)  # (C, gamma, class weight)
-    c, g, w = (int(v) for v in np.unravel_index(int(np.argmax(scores)), scores.shape))
-    params = {"C": float(C_grid[c]), "gamma": float(gamma_grid[g]),
-              "class_weight": class_weights[w]}
-    return params, float(scores[c, g, w])
+    grid = [{"C": float(C), "gamma": float(g), "class_weight": w}
+            for C, g, w in itertools.product(C_grid, gamma_grid, class_weights)]
+    n_train = min(len(train) for train, _ in splits)
+    rungs = 0
+    if halving > 1:
+        while (n_train / halving ** (rungs + 1) >= min_train
+               and len(grid) / halving ** (rungs + 1) >= 2):
+            rungs += 1
+    rs = np.random.RandomState(seed)
+    subsets = [_stratified_order(y, train, rs) for train, _ in splits]
+    alive = np.arange(len(grid))
+    for rung in range(rungs + 1):
+        share = float(halving) ** (rung - rungs)
+        scores = _score_grid(Z, y, splits, subsets, share, [grid[i] for i in alive], n_jobs)
+        if rung < rungs:  # keep the best 1/eta, ties in grid order
+            keep = max(2, int(np.ceil(len(alive) / halving)))
+            alive = np.sort(alive[np.argsort(-scores, kind="stable")[:keep]])
+    best = int(np.argmax(scores))
+    return dict(grid[alive[best]]), float(scores[best])
+
+
+def _stratified_order(y, train, rs):
+    """The rows of ``train`` in an order whose every prefix keeps the class proportions
+    (each class shuffled, then the two interleaved by rank)."""
+    parts = [train[y[train] == c] for c in (False, True)]
+    keys = [(np.arange(len(p)) + rs.random_sample(len(p))) / max(len(p), 1) for p in parts]
+    rows = np.concatenate([rs.permutation(p) for p in parts])
+    return rows[np.argsort(np.concatenate(keys), kind="stable")]
+
+
+def _score_grid(Z, y, splits, subsets, share, settings, n_jobs):
+    """(len(settings),) mean accuracy over the folds, each fold trained on the first
+    ``share`` of its ordered training rows (at least 2 per class when the fold has them)."""
+    by_gamma: dict[float, list[int]] = {}
+    for i, p in enumerate(settings):
+        by_gamma.setdefault(p["gamma"], []).append(i)
+    jobs, where = [], []
+    for k, ((_, test), order) in enumerate(zip(splits, subsets, strict=True)):
+        train = order[: max(int(round(share * len(order))), 4)]
+        if share < 1 and len(np.unique(y[train])) < 2:
+            train = order
+        for idx in by_gamma.values():
+            jobs.append((Z, y, train, test, [settings[i] for i in idx]))
+            where.append((k, idx))
+    scores = np.zeros((len(splits), len(settings)))
+    for (k, idx), acc in zip(where, _parallel(_score_settings, jobs, n_jobs), strict=True):
+        scores[k, idx] = acc
+    return scores.mean(axis=0)
 
 
 def _platt(f: np.ndarray, y: np.ndarray) -> tuple[float, float]:
