@@ -477,6 +477,7 @@ def cmd_evaluate(args) -> int:
     from rgmcad.design_space import vector_from_values
     from rgmcad.errors import ScenarioError
     from rgmcad.evaluate import local_robustness, plot_curves
+    from rgmcad.executor import map_blocks
 
     if args.samples < 1:
         raise ScenarioError("--samples", "", "expected a positive number of layouts per radius")
@@ -494,7 +495,7 @@ def cmd_evaluate(args) -> int:
     bar = tqdm(desc="validity", unit="layout", file=sys.stderr, mininterval=0.5)
 
     def validity(X):
-        ok = np.fromiter(executor.map(problem.is_valid, list(X)), bool, len(X))
+        ok = map_blocks(executor, problem.validity, X)
         bar.update(len(X))
         return ok
 

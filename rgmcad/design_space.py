@@ -12,7 +12,7 @@ from collections.abc import Mapping
 
 import numpy as np
 
-from rgmcad.geometry import POSE_KEYS, pose_matrix
+from rgmcad.geometry import POSE_KEYS, pose_matrices, pose_matrix
 from rgmcad.scenario import Scenario
 
 
@@ -62,6 +62,28 @@ def world_poses(scenario: Scenario, values) -> dict[str, np.ndarray]:
         if name not in world:
             parent = scenario.objects[name].parent
             world[name] = local[name] if parent is None else resolve(parent) @ local[name]
+        return world[name]
+
+    for name in scenario.objects:
+        resolve(name)
+    return world
+
+
+def world_poses_many(scenario: Scenario, values) -> dict[str, np.ndarray]:
+    """(n, 4, 4) world transforms of every object for n layouts of real ``values`` (n, d):
+    :func:`world_poses` for many layouts at once."""
+    values = np.atleast_2d(np.asarray(values, float))
+    local6 = {name: np.repeat(np.asarray(obj.pose, float)[None], len(values), axis=0)
+              for name, obj in scenario.objects.items()}
+    for i, f in enumerate(scenario.free):
+        local6[f.object][:, POSE_KEYS.index(f.component)] = values[:, i]
+    world: dict[str, np.ndarray] = {}
+
+    def resolve(name):
+        if name not in world:
+            parent = scenario.objects[name].parent
+            local = pose_matrices(local6[name])
+            world[name] = local if parent is None else resolve(parent) @ local
         return world[name]
 
     for name in scenario.objects:

@@ -34,6 +34,27 @@ def rotation_hpr(heading_deg: float, pitch_deg: float, roll_deg: float) -> np.nd
     ])
 
 
+def pose_matrices(poses6: np.ndarray) -> np.ndarray:
+    """(n, 4, 4) matrices of n poses ``(x, y, z, heading, pitch, roll)`` (n, 6): the
+    vectorised :func:`pose_matrix` (validity tests thousands of layouts at once)."""
+    poses6 = np.asarray(poses6, dtype=float)
+    h, p, r = np.radians(poses6[:, 3:]).T
+    ch, sh, cp, sp, cr, sr = np.cos(h), np.sin(h), np.cos(p), np.sin(p), np.cos(r), np.sin(r)
+    m = np.zeros((len(poses6), 4, 4))
+    m[:, 0, 0] = ch * cr - sh * sp * sr
+    m[:, 0, 1] = -sh * cp
+    m[:, 0, 2] = ch * sr + sh * sp * cr
+    m[:, 1, 0] = sh * cr + ch * sp * sr
+    m[:, 1, 1] = ch * cp
+    m[:, 1, 2] = sh * sr - ch * sp * cr
+    m[:, 2, 0] = -cp * sr
+    m[:, 2, 1] = sp
+    m[:, 2, 2] = cp * cr
+    m[:, :3, 3] = poses6[:, :3]
+    m[:, 3, 3] = 1.0
+    return m
+
+
 def hpr_of(rotation: np.ndarray) -> np.ndarray:
     """(3,) heading, pitch, roll in degrees of a (3, 3) rotation (inverse of rotation_hpr)."""
     return Rotation.from_matrix(rotation).as_euler("ZXY", degrees=True)

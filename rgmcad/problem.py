@@ -80,6 +80,7 @@ def event_parents(scenario) -> dict[str, tuple[str, ...]]:
 
 
 _CONTEXTS: dict[tuple[str, str], tuple[object, dict]] = {}
+_TESTERS: dict[tuple[str, str], object] = {}  # LayoutValidity per process and context
 
 
 def context(scenario_path: str, build_dir: str):
@@ -163,9 +164,18 @@ class ScenarioProblem:
     # --- Problem protocol -----------------------------------------------------------------
 
     def validity(self, X: np.ndarray) -> np.ndarray:
-        """(n,) bool: whether each row of ``X`` (n, d) is physically valid (exact test)."""
+        """(n,) bool: whether each row of ``X`` (n, d) is physically valid (the exact test of
+        :func:`~rgmcad.validity.check_validity`, run on all rows at once)."""
+        from rgmcad.design_space import bounds
+
         X = np.atleast_2d(np.asarray(X, dtype=float))
-        return np.array([self.is_valid(x) for x in X], dtype=bool)
+        key = (self.scenario_path, self.build_dir)
+        if key not in _TESTERS:
+            from rgmcad.validity import LayoutValidity
+
+            _TESTERS[key] = LayoutValidity(self.scenario, self.parts)
+        low, high = bounds(self.scenario)
+        return _TESTERS[key](low + X * (high - low))
 
     def penetration(self, x: np.ndarray) -> float:
         """Summed penetration depth (m) beyond the validity tolerance; 0 iff valid."""
@@ -192,5 +202,5 @@ class ScenarioProblem:
 
     def is_valid(self, x: np.ndarray) -> bool:
         """Whether the design vector ``x`` (d,) is physically valid (one row of
-        :meth:`validity`, for executors that map over rows)."""
-        return bool(self._validity(np.asarray(x, dtype=float).reshape(-1), True).valid)
+        :meth:`validity`)."""
+        return bool(self.validity(np.asarray(x, dtype=float).reshape(1, -1))[0])

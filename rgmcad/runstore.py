@@ -37,6 +37,7 @@ from typing import Any
 import numpy as np
 
 from rgmcad.errors import ScenarioError
+from rgmcad.executor import map_blocks
 from rgmcad.problem import SimRecord
 
 __all__ = ["RunStore", "RecordedProblem", "run_identity", "SETTINGS", "SIMULATIONS", "RESULT",
@@ -238,7 +239,7 @@ class RecordedProblem:
     Parameters
     ----------
     problem : ScenarioProblem
-        Picklable; its ``simulate_one`` and ``is_valid`` run on the executor.
+        Picklable; its ``simulate_one`` and ``validity`` run on the executor.
     store : RunStore
     executor : Executor
         See :mod:`rgmcad.executor`.
@@ -263,10 +264,7 @@ class RecordedProblem:
         self.n_simulated = 0
 
     def validity(self, X: np.ndarray) -> np.ndarray:
-        X = np.atleast_2d(np.asarray(X, dtype=float))
-        if self.executor.workers > 1 and len(X) > 1:
-            return np.fromiter(self.executor.map(self.problem.is_valid, list(X)), bool, len(X))
-        return self.problem.validity(X)
+        return map_blocks(self.executor, self.problem.validity, X)
 
     def penetration(self, x: np.ndarray) -> float:
         return self.problem.penetration(x)

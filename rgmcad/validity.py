@@ -8,6 +8,9 @@ make and for the cap a ball sinks into a plane. A body against an infinite plane
 exactly by the signed distances of its vertices, and a ball against a part made of box, sphere
 and cylinder pieces (which tile it exactly) by the distances of its centre to those pieces.
 
+:class:`LayoutValidity` gives the same yes/no answers for thousands of layouts at once (the
+samplers' case), with the poses and the box tests vectorised over layouts.
+
 The layout is valid when no penetration is deeper than ``tolerance`` (default 0.2 mm): bodies
 that touch are valid, a 0.5 mm overlap is not. The paper summed Bullet's contact depths against
 1 mm, which let thin parts overlap by most of their thickness.
@@ -20,6 +23,7 @@ from dataclasses import dataclass
 import manifold3d
 import numpy as np
 
+from rgmcad.build import BuiltBody
 from rgmcad.geometry import invert, transform_points
 from rgmcad.partlib import BoxPiece, CylinderPiece, SpherePiece
 from rgmcad.scene import Scene, SceneBody
@@ -51,16 +55,16 @@ class Validity:
 _MANIFOLDS: dict[int, tuple[object, manifold3d.Manifold]] = {}
 
 
-def _manifold(body: SceneBody) -> manifold3d.Manifold:
+def _manifold(built: BuiltBody) -> manifold3d.Manifold:
     """The body's mesh as a Manifold, built once per process and per built body."""
-    key = id(body.built)
+    key = id(built)
     cached = _MANIFOLDS.get(key)
-    if cached is None or cached[0] is not body.built:
+    if cached is None or cached[0] is not built:
         mesh = manifold3d.Mesh(
-            vert_properties=np.asarray(body.built.vertices, np.float32),
-            tri_verts=np.asarray(body.built.faces, np.uint32),
+            vert_properties=np.asarray(built.vertices, np.float32),
+            tri_verts=np.asarray(built.faces, np.uint32),
         )
-        cached = (body.built, manifold3d.Manifold(mesh))
+        cached = (built, manifold3d.Manifold(mesh))
         _MANIFOLDS[key] = cached
     return cached[1]
 
@@ -109,21 +113,47 @@ def _signed_distance(point: np.ndarray, piece) -> float:
 _PRIMITIVES = (BoxPiece, SpherePiece, CylinderPiece)
 
 
-def _ball_depth(ball: SceneBody, other: SceneBody) -> float | None:
+def _ball_depth(ball: BuiltBody, ball_pose, other: BuiltBody, other_pose) -> float | None:
     """Exact penetration depth of a ball into a body made of primitive pieces, or None when
     the shortcut does not apply (the ball is not a single sphere, or the other body has
     convex-hull pieces). The pieces of such parts tile their solid exactly (a track is three
     boxes), so this is the deepest a ball sinks into any of them, computed in microseconds
     where a mesh intersection with a finely tessellated ball takes milliseconds."""
-    pieces = ball.built.pieces
-    if len(pieces) != 1 or not isinstance(pieces[0], SpherePiece):
+    pieces = ball.pieces
+    if not _is_ball(ball):
         return None
-    if not all(isinstance(p, _PRIMITIVES) for p in other.built.pieces):
+    if not all(isinstance(p, _PRIMITIVES) for p in other.pieces):
         return None
-    centre = transform_points(ball.pose, pieces[0].frame[None, :3, 3])[0]
-    local = transform_points(invert(other.pose), centre[None])[0]
-    depth = max(pieces[0].radius - _signed_distance(local, p) for p in other.built.pieces)
+    centre = transform_points(ball_pose, pieces[0].frame[None, :3, 3])[0]
+    local = transform_points(invert(other_pose), centre[None])[0]
+    depth = max(pieces[0].radius - _signed_distance(local, p) for p in other.pieces)
     return max(depth, 0.0)
+
+
+def _is_ball(built: BuiltBody) -> bool:
+    return len(built.pieces) == 1 and isinstance(built.pieces[0], SpherePiece)
+
+
+def _pair_penetration(a: BuiltBody, pose_a, b: BuiltBody, pose_b) -> tuple[float, float]:
+    """``(depth, volume)`` of the intersection of two posed bodies (m, m^3; ``(0, 0)`` when
+    they do not intersect; volume 0 when a ball was tested analytically)."""
+    depth = _ball_depth(a, pose_a, b, pose_b)
+    if depth is None:
+        depth = _ball_depth(b, pose_b, a, pose_a)
+    if depth is not None:
+        return depth, 0.0
+    inter = _manifold(a) ^ _manifold(b).transform((invert(pose_a) @ pose_b)[:3, :4])  # in a's frame
+    if inter.is_empty():
+        return 0.0, 0.0
+    volume = float(inter.volume())
+    if volume <= 0:
+        return 0.0, 0.0
+    return thickness(np.asarray(inter.to_mesh().vert_properties)[:, :3].astype(float)), volume
+
+
+def _plane_depth(body: BuiltBody, pose, origin, normal) -> float:
+    """How far (m) a posed body reaches below a plane (negative when it stays above)."""
+    return -float(((transform_points(pose, body.vertices) - origin) @ normal).min())
 
 
 def thickness(points: np.ndarray) -> float:
@@ -166,7 +196,7 @@ def check_validity(
             if frozenset((plane.name, body.name)) in excluded:
                 continue
             tested += 1
-            depth = -float(((body.world_vertices() - origin) @ normal).min())
+            depth = _plane_depth(body.built, body.pose, origin, normal)
             if depth > tolerance:
                 overlaps.append(Overlap(plane.name, body.name, depth, 0.0))
                 if stop_at_first:
@@ -186,25 +216,101 @@ def check_validity(
         for i, j in pairs:
             a, b = solids[i], solids[j]
             tested += 1
-            depth = _ball_depth(a, b)
-            if depth is None:
-                depth = _ball_depth(b, a)
-            if depth is not None:
-                if depth > tolerance:
-                    overlaps.append(Overlap(a.name, b.name, depth, 0.0))
-                    if stop_at_first:
-                        break
-                continue
-            inter = (_manifold(a).transform(a.pose[:3, :4])
-                     ^ _manifold(b).transform(b.pose[:3, :4]))
-            if inter.is_empty():
-                continue
-            volume = float(inter.volume())
-            if volume <= 0:
-                continue
-            depth = thickness(np.asarray(inter.to_mesh().vert_properties)[:, :3].astype(float))
+            depth, volume = _pair_penetration(a.built, a.pose, b.built, b.pose)
             if depth > tolerance:
                 overlaps.append(Overlap(a.name, b.name, depth, volume))
                 if stop_at_first:
                     break
     return Validity(not overlaps, tuple(overlaps), tested)
+
+
+class LayoutValidity:
+    """Yes/no validity of many layouts of one scenario at once: for every row of real
+    parameter values, the answer of ``check_validity(make_scene(scenario, values, parts),
+    tolerance).valid``, computed with the same tests in the same terms. The poses, the plane
+    bounds and the box pruning are vectorised over layouts; only the pairs whose oriented boxes
+    overlap get an exact test, and a layout's tests stop at its first penetration. A sampler
+    tests thousands of random layouts per run, most of them invalid: this is ~3 times faster
+    than one scene at a time (``make_scene`` and the per-scene pruning were 60 % of the cost).
+
+    Parameters
+    ----------
+    scenario : Scenario
+    parts : Mapping[str, BuiltPart]
+        The scenario's built parts.
+    tolerance : float
+        As in :func:`check_validity`.
+    """
+
+    def __init__(self, scenario, parts, tolerance: float = TOLERANCE):
+        from rgmcad.design_space import bounds
+        from rgmcad.scene import make_scene
+
+        low, high = bounds(scenario)
+        scene = make_scene(scenario, (low + high) / 2, parts)  # any layout: same bodies
+        excluded = scene.jointed_pairs()
+        self.scenario = scenario
+        self.tolerance = float(tolerance)
+        self.solids = [b for b in scene.bodies.values() if not b.plane]
+        self.planes = [b for b in scene.bodies.values() if b.plane]
+        lo = np.array([b.built.bbox[0] for b in self.solids], float).reshape(-1, 3)
+        hi = np.array([b.built.bbox[1] for b in self.solids], float).reshape(-1, 3)
+        self.local_centres, self.halves = (lo + hi) / 2, (hi - lo) / 2
+        n = len(self.solids)
+        pairs = [(i, j) for i in range(n) for j in range(i + 1, n)
+                 if frozenset((self.solids[i].name, self.solids[j].name)) not in excluded]
+        # cheapest exact tests first (any order gives the same answer): balls are analytic,
+        # then fewest triangles
+        size = [0 if _is_ball(b.built) else len(b.built.faces) for b in self.solids]
+        pairs.sort(key=lambda ij: min(size[ij[0]], size[ij[1]]) + size[ij[0]] + size[ij[1]])
+        self.pairs = np.array(pairs, dtype=int).reshape(-1, 2)
+        self.plane_solids = [
+            np.array([frozenset((p.name, b.name)) not in excluded for b in self.solids])
+            for p in self.planes
+        ]
+
+    def __call__(self, values) -> np.ndarray:
+        """(m,) bool for real parameter values (m, d)."""
+        from rgmcad.design_space import world_poses_many
+
+        values = np.atleast_2d(np.asarray(values, float))
+        m, n, tol = len(values), len(self.solids), self.tolerance
+        valid = np.ones(m, dtype=bool)
+        if n == 0 or m == 0:
+            return valid
+        world = world_poses_many(self.scenario, values)
+        poses = np.stack([world[b.object] for b in self.solids], axis=1)  # (m, n, 4, 4)
+        rot = poses[..., :3, :3]
+        centres = np.einsum("mnij,nj->mni", rot, self.local_centres) + poses[..., :3, 3]
+
+        for plane, allowed in zip(self.planes, self.plane_solids, strict=True):
+            plane_pose = world[plane.object]
+            normal, origin = plane_pose[:, :3, 2], plane_pose[:, :3, 3]
+            lowest = np.einsum("mni,mi->mn", centres - origin[:, None], normal) - np.einsum(
+                "mni,ni->mn", np.abs(np.einsum("mnji,mj->mni", rot, normal)), self.halves)
+            for row, k in zip(*np.nonzero((lowest < -tol) & allowed), strict=True):
+                if valid[row] and _plane_depth(self.solids[k].built, poses[row, k],
+                                               origin[row], normal[row]) > tol:
+                    valid[row] = False
+
+        if len(self.pairs) == 0:
+            return valid
+        first, second = self.pairs.T
+        reach = np.einsum("mnij,nj->mni", np.abs(rot), self.halves)
+        lo, hi = centres - reach + tol / 2, centres + reach - tol / 2
+        hits = np.all((lo[:, first] < hi[:, second]) & (lo[:, second] < hi[:, first]), axis=2)
+        rows, ks = np.nonzero(hits & valid[:, None])  # layout by layout, pairs in order
+        if len(rows) == 0:
+            return valid
+        a, b = rows * n + first[ks], rows * n + second[ks]
+        apart = _boxes_apart(centres.reshape(-1, 3), np.tile(self.halves, (m, 1)),
+                             rot.reshape(-1, 3, 3), a, b, tol)
+        for row, k in zip(rows[~apart], ks[~apart], strict=True):
+            if not valid[row]:
+                continue
+            i, j = first[k], second[k]
+            depth, _ = _pair_penetration(self.solids[i].built, poses[row, i],
+                                         self.solids[j].built, poses[row, j])
+            if depth > tol:
+                valid[row] = False
+        return valid

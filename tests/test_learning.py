@@ -163,7 +163,7 @@ def test_successive_halving_search_agrees_with_the_exhaustive_search():
     y = np.array([lab.success for lab in oracle.simulate(X)])
     grids = dict(svm_C_grid=(0.1, 1.0, 10.0, 100.0, 1000.0), svm_gamma_grid=(0.01, 0.1, 1.0, 10.0))
 
-    def search(halving, min_train, n=len(y)):
+    def search(halving, min_train, n=900):
         settings = LearningSettings(**grids, search_halving=halving, search_min_train=min_train)
         return SuccessClassifier.from_settings(settings, random_state=0).fit(X[:n], y[:n])
 

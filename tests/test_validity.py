@@ -75,11 +75,33 @@ def test_ball_shortcut_agrees_with_the_mesh_intersection(sink):
                                                  "wall": 0.005}}}, E)
     scene = scene_of(sc)
     ball, track = scene.bodies["a"], scene.bodies["b"]
-    analytic = validity._ball_depth(ball, track)
+    analytic = validity._ball_depth(ball.built, ball.pose, track.built, track.pose)
     assert analytic == pytest.approx(sink, abs=1e-9)
-    inter = validity._manifold(ball).transform(ball.pose[:3, :4]) ^ validity._manifold(
-        track).transform(track.pose[:3, :4])
+    inter = validity._manifold(ball.built).transform(ball.pose[:3, :4]) ^ validity._manifold(
+        track.built).transform(track.pose[:3, :4])
     mesh_depth = 0.0 if inter.is_empty() else validity.thickness(
         np.asarray(inter.to_mesh().vert_properties)[:, :3].astype(float))
     assert mesh_depth == pytest.approx(sink, abs=1e-4)  # the ball mesh is inscribed
     assert check_validity(scene).valid == (sink <= 2e-4)
+
+
+@pytest.mark.parametrize("name", ["ballrun", "causality_switch"])
+def test_many_layouts_at_once_give_the_answers_of_one_scene_at_a_time(name):
+    from scipy.stats import qmc
+
+    from rgmcad.design_space import bounds, world_poses, world_poses_many
+    from rgmcad.problem import ScenarioProblem
+    from rgmcad.scene import make_scene
+    from rgmcad.validity import LayoutValidity
+
+    problem = ScenarioProblem(f"scenarios/{name}.toml")
+    scenario, parts = problem.scenario, problem.parts
+    low, high = bounds(scenario)
+    values = low + qmc.Sobol(scenario.dimension, rng=0).random(128) * (high - low)
+    many = world_poses_many(scenario, values[:3])
+    for row in range(3):
+        for obj, pose in world_poses(scenario, values[row]).items():
+            np.testing.assert_allclose(many[obj][row], pose, atol=1e-12)
+    one_by_one = [check_validity(make_scene(scenario, v, parts)).valid for v in values]
+    assert 0 < sum(one_by_one) < len(values)  # both answers occur
+    assert LayoutValidity(scenario, parts)(values).tolist() == one_by_one
