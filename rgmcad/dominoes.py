@@ -12,7 +12,6 @@ as radians; harmless there because every scenario used 0).
 from __future__ import annotations
 
 import numpy as np
-from scipy.integrate import cumulative_trapezoid
 
 
 def _place(points: np.ndarray, headings: np.ndarray, origin, angle_deg: float) -> np.ndarray:
@@ -56,7 +55,8 @@ def wave(count: int, length: float, width: float, origin=(0.0, 0.0), angle: floa
     u = np.pi * (2 * x / length - 1)
     y = k * np.exp(-(u**2) / 2) * np.sin(u)
     dy = np.gradient(y, x)
-    s = cumulative_trapezoid(np.sqrt(1 + dy**2), x, initial=0.0)
+    f = np.sqrt(1 + dy**2)  # cumulative trapezoid (scipy.integrate costs 0.8 s to import)
+    s = np.concatenate([[0.0], np.cumsum(np.diff(x) * (f[1:] + f[:-1]) / 2.0)])
     targets = np.linspace(0.0, s[-1], count)
     xs = np.interp(targets, s, x)
     ys = np.interp(targets, s, y)

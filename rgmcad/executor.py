@@ -82,9 +82,10 @@ class PoolExecutor:
         Run once in each worker when it starts (load the scenario and its parts there).
     max_batch : int, default 8
         Most items per task. A call of ``map`` over n items makes tasks of
-        ``ceil(n / (4 workers))`` items (at most ``max_batch``), so each worker gets about four
-        tasks: few enough that scheduling costs little, enough that a slow item does not leave
-        the other workers idle for long.
+        ``ceil(n / (8 workers))`` items (at most ``max_batch``), so each worker gets about
+        eight tasks: few enough that scheduling costs little, enough that a slow item does not
+        leave the other workers idle for long. The learner's batches of 10 simulations thus go
+        one per task: in tasks of two, one of two workers sat idle for a fifth of each batch.
     """
 
     def __init__(self, workers: int, initializer: Callable | None = None,
@@ -98,7 +99,7 @@ class PoolExecutor:
 
     def map(self, fn, items):
         items = list(items)
-        size = max(1, min(self.max_batch, -(-len(items) // (4 * self.workers))))
+        size = max(1, min(self.max_batch, -(-len(items) // (8 * self.workers))))
         futures = [self._pool.submit(_apply_batch, fn, items[i:i + size])
                    for i in range(0, len(items), size)]
         return self._results(futures)

@@ -73,6 +73,10 @@ class SobolStream:
         out, self._buffer = self._buffer[:n], self._buffer[n:]
         return out
 
+    def put_back(self, points: np.ndarray) -> None:
+        """Return the last points taken, unused: the next :meth:`take` starts with them."""
+        self._buffer = np.vstack([points, self._buffer])
+
 
 def sample_mixture(
     means: np.ndarray,
@@ -112,9 +116,10 @@ def sample_mixture(
 
 
 def first_valid(
-    candidates: np.ndarray, validity: ValidityFn, n: int, chunk: int | None = None
+    candidates: np.ndarray, validity: ValidityFn, n: int, chunk: int | None = None,
+    rate: float = 1.0,
 ) -> tuple[np.ndarray, int]:
-    """The first ``n`` valid rows of ``candidates``, testing them in order by chunks.
+    """The first ``n`` valid rows of ``candidates``, testing them in order by blocks.
 
     Parameters
     ----------
@@ -124,28 +129,44 @@ def first_valid(
     n : int
         Number of valid rows wanted.
     chunk : int, optional
-        Rows tested per call (default ``n``); testing stops once ``n`` valid rows are found.
+        Fewest rows tested per call (default ``n``).
+    rate : float
+        Expected fraction of valid candidates. Each call tests enough rows to finish at that
+        rate (the first) or at the rate observed so far (the next ones), with 20 % to spare:
+        a call to a process pool costs milliseconds, a test a fraction of one. The rows
+        returned do not depend on it; only how many are tested does.
 
     Returns
     -------
     valid_rows : (<= n, d) float
         Fewer than ``n`` rows if the candidates ran out.
     n_tested : int
-        Number of candidates whose validity was tested.
+        Number of candidates up to the last row returned (or all, when they ran out): the
+        draws the valid rows cost, whatever extra rows a call tested.
     """
     chunk = max(1, int(chunk or n))
     kept: list[np.ndarray] = []
     n_kept = 0
     start = 0
     while n_kept < n and start < len(candidates):
-        block = candidates[start : start + max(chunk, n - n_kept)]
+        if start:
+            rate = max(n_kept / start, 0.02)
+        size = max(chunk if not start else 1, _block(n - n_kept, rate))
+        block = candidates[start : start + size]
         ok = np.asarray(validity(block), dtype=bool)
-        rows = block[ok][: n - n_kept]
-        kept.append(rows)
-        n_kept += len(rows)
+        hits = np.flatnonzero(ok)
+        if len(hits) > n - n_kept:  # tested past the n-th valid row: count up to it
+            block, ok = block[: hits[n - n_kept - 1] + 1], ok[: hits[n - n_kept - 1] + 1]
+        kept.append(block[ok])
+        n_kept += int(ok.sum())
         start += len(block)
     out = np.vstack(kept) if kept else np.empty((0, candidates.shape[1]))
     return out, start
+
+
+def _block(needed: int, rate: float) -> int:
+    """Rows to test to find ``needed`` valid ones at ``rate``, with 20 % to spare."""
+    return needed if rate >= 1 else int(np.ceil(1.2 * needed / max(rate, 0.02)))
 
 
 @dataclass(frozen=True)
@@ -161,7 +182,7 @@ class Exploration:
     n_iterations : int
         Adaptive iterations run after the Sobol batch.
     n_validity_tests : int
-        Candidates whose validity was tested.
+        Candidates drawn up to the last valid one used (see :func:`first_valid`).
     n_global_successes : int
         Samples that succeeded globally.
     """
@@ -225,6 +246,7 @@ def explore(
     n_succ = np.array([lab.n_success for lab in labels], dtype=float)
     n_global = sum(lab.success for lab in labels)
     k = 0
+    mixture_tested = mixture_valid = 0  # to size the validity calls (not the result)
     while n_global < s.n_successes and k < s.exploration_max_iter:
         top = np.argsort(-n_succ, kind="stable")[: min(s.n_successes, len(n_succ))]
         w = n_succ[top]
@@ -233,7 +255,10 @@ def explore(
                 np.vstack(Xs)[top], w, s.exploration_variance,
                 s.max_draws_factor * s.exploration_batch, rng,
             )
-            Xk, nt = first_valid(cands, problem.validity, s.exploration_batch)
+            rate = mixture_valid / mixture_tested if mixture_tested else 1.0
+            Xk, nt = first_valid(cands, problem.validity, s.exploration_batch, rate=rate)
+            mixture_tested += nt
+            mixture_valid += len(Xk)
         else:
             Xk, nt = _sobol_valid(sobol, problem.validity, s.exploration_batch, s.max_draws_factor)
         n_tested += nt
@@ -259,15 +284,23 @@ def explore(
 def _sobol_valid(
     sobol: SobolStream, validity: ValidityFn, n: int, max_draws_factor: int
 ) -> tuple[np.ndarray, int]:
-    """The next ``n`` valid Sobol points, drawing at most ``max_draws_factor * n``."""
+    """The next ``n`` valid Sobol points, drawing at most ``max_draws_factor * n``; the
+    points tested beyond the ``n``-th valid one go back to the stream."""
     rows: list[np.ndarray] = []
     n_kept = n_tested = 0
+    rate = 1.0
     while n_kept < n and n_tested < max_draws_factor * n:
-        block = sobol.take(min(n - n_kept, max_draws_factor * n - n_tested))
+        block = sobol.take(min(_block(n - n_kept, rate), max_draws_factor * n - n_tested))
         ok = np.asarray(validity(block), dtype=bool)
+        hits = np.flatnonzero(ok)
+        if len(hits) > n - n_kept:
+            end = hits[n - n_kept - 1] + 1
+            sobol.put_back(block[end:])
+            block, ok = block[:end], ok[:end]
         rows.append(block[ok])
         n_kept += int(ok.sum())
         n_tested += len(block)
+        rate = max(n_kept / n_tested, 0.02)
     return stack_rows(rows, sobol.dimension), n_tested
 
 
