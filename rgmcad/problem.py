@@ -154,12 +154,11 @@ class ScenarioProblem:
 
         return values_from_vector(self.scenario, np.asarray(x, dtype=float))
 
-    def _validity(self, x, stop_at_first: bool = False):
+    def _validity(self, x):
         from rgmcad.scene import make_scene
         from rgmcad.validity import check_validity
 
-        return check_validity(make_scene(self.scenario, self.values(x), self.parts),
-                              stop_at_first=stop_at_first)
+        return check_validity(make_scene(self.scenario, self.values(x), self.parts))
 
     # --- Problem protocol -----------------------------------------------------------------
 

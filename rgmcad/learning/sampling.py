@@ -154,14 +154,19 @@ def first_valid(
         size = max(chunk if not start else 1, _block(n - n_kept, rate))
         block = candidates[start : start + size]
         ok = np.asarray(validity(block), dtype=bool)
-        hits = np.flatnonzero(ok)
-        if len(hits) > n - n_kept:  # tested past the n-th valid row: count up to it
-            block, ok = block[: hits[n - n_kept - 1] + 1], ok[: hits[n - n_kept - 1] + 1]
+        end = _through_nth_valid(ok, n - n_kept)  # rows tested past it do not count
+        block, ok = block[:end], ok[:end]
         kept.append(block[ok])
         n_kept += int(ok.sum())
         start += len(block)
     out = np.vstack(kept) if kept else np.empty((0, candidates.shape[1]))
     return out, start
+
+
+def _through_nth_valid(ok: np.ndarray, n: int) -> int:
+    """Length of the prefix of ``ok`` that ends at its ``n``-th True (all of it if fewer)."""
+    hits = np.flatnonzero(ok)
+    return int(hits[n - 1]) + 1 if len(hits) >= n else len(ok)
 
 
 def _block(needed: int, rate: float) -> int:
@@ -292,11 +297,9 @@ def _sobol_valid(
     while n_kept < n and n_tested < max_draws_factor * n:
         block = sobol.take(min(_block(n - n_kept, rate), max_draws_factor * n - n_tested))
         ok = np.asarray(validity(block), dtype=bool)
-        hits = np.flatnonzero(ok)
-        if len(hits) > n - n_kept:
-            end = hits[n - n_kept - 1] + 1
-            sobol.put_back(block[end:])
-            block, ok = block[:end], ok[:end]
+        end = _through_nth_valid(ok, n - n_kept)
+        sobol.put_back(block[end:])
+        block, ok = block[:end], ok[:end]
         rows.append(block[ok])
         n_kept += int(ok.sum())
         n_tested += len(block)
