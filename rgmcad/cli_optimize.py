@@ -169,16 +169,17 @@ def cmd_optimize(args) -> int:
             _print_summary(summary, args.json, wall_time=time.perf_counter() - start)
             return 0 if summary["verified"] else 1
         from rgmcad.learning import learn_and_optimize
+        from rgmcad.learning.parallel import jobs_on
 
         problem, executor = _problem_and_executor(args)
         bar = _Bar()
         try:
             recorded = RecordedProblem(problem, store, executor, bar.simulation)
-            # The pool is idle while the SVMs train: give their grid search and calibration
-            # folds the same CPUs (n_jobs changes the speed, never the result).
-            workers = executor.workers if executor.workers > 1 else None
-            result = learn_and_optimize(recorded, settings.replace(n_jobs=workers), args.seed,
-                                        on_progress=bar.progress)
+            # The pool is idle while the models train: their grid searches, calibration folds
+            # and mutual information estimates run there (never changing the result).
+            with jobs_on(executor):
+                result = learn_and_optimize(recorded, settings, args.seed,
+                                            on_progress=bar.progress)
             bar.stage("verification")
             chosen = _verify(recorded, result)
         finally:

@@ -71,6 +71,21 @@ def _apply_batch(fn: Callable, batch: Sequence) -> list:
     return [fn(item) for item in batch]
 
 
+_THREAD_LIMITS = None  # kept alive for the worker's lifetime
+
+
+def _start_worker(threads: int, initializer: Callable | None, initargs: Sequence) -> None:
+    """Worker start: cap the BLAS and OpenMP threads of numpy and scikit-learn at
+    ``threads`` (each worker otherwise starts one per CPU: with 2 workers on 2 CPUs, the
+    grid searches' kernel products ran 1.7 times slower), then the caller's initializer."""
+    global _THREAD_LIMITS
+    from threadpoolctl import threadpool_limits
+
+    _THREAD_LIMITS = threadpool_limits(limits=threads)
+    if initializer is not None:
+        initializer(*initargs)
+
+
 class PoolExecutor:
     """A :class:`concurrent.futures.ProcessPoolExecutor` that batches items into tasks.
 
@@ -79,7 +94,8 @@ class PoolExecutor:
     workers : int
         Worker processes.
     initializer, initargs
-        Run once in each worker when it starts (load the scenario and its parts there).
+        Run once in each worker when it starts (load the scenario and its parts there),
+        after the worker's BLAS and OpenMP threads are capped at ``CPUs // workers``.
     max_batch : int, default 8
         Most items per task. A call of ``map`` over n items makes tasks of
         ``ceil(n / (8 workers))`` items (at most ``max_batch``), so each worker gets about
@@ -94,8 +110,9 @@ class PoolExecutor:
             raise ValueError(f"workers must be >= 1, got {workers}")
         self.workers = workers
         self.max_batch = max_batch
-        self._pool = ProcessPoolExecutor(workers, initializer=initializer,
-                                         initargs=tuple(initargs))
+        threads = max(1, default_workers() // workers)
+        self._pool = ProcessPoolExecutor(workers, initializer=_start_worker,
+                                         initargs=(threads, initializer, tuple(initargs)))
 
     def map(self, fn, items):
         items = list(items)

@@ -176,6 +176,46 @@ def test_successive_halving_search_agrees_with_the_exhaustive_search():
     assert small.search_accuracy_ == pytest.approx(search(1, 100, n=300).search_accuracy_)
 
 
+def test_grid_search_kernel_in_numpy_scores_as_libsvm_kernel(monkeypatch):
+    from rgmcad.learning import classifier
+
+    oracle = disc_oracle(softness=0.05, seed=4)
+    X = np.random.default_rng(4).random((400, 3))
+    y = np.array([lab.success for lab in oracle.simulate(X)])
+    settings = [{"C": C, "gamma": g, "class_weight": w} for g in (0.1, 1.0, 10.0)
+                for C in (0.01, 1.0, 100.0) for w in (None, "balanced")]
+    train, test = np.arange(0, 400, 3), np.setdiff1d(np.arange(400), np.arange(0, 400, 3))
+    numpy_kernel = classifier._score_settings(X, y, train, test, settings)
+    monkeypatch.setattr(classifier, "_PRECOMPUTED_MAX_ROWS", 0)
+    libsvm_kernel = classifier._score_settings(X, y, train, test, settings)
+    assert numpy_kernel == libsvm_kernel
+    assert len(set(numpy_kernel)) > 3  # the settings do differ
+
+
+def test_jobs_lent_to_a_process_pool_give_the_serial_result():
+    from rgmcad.executor import PoolExecutor
+    from rgmcad.learning.factorize import select_dimensions
+    from rgmcad.learning.parallel import jobs_on
+
+    oracle = disc_oracle(softness=0.05, seed=5)
+    X = np.random.default_rng(5).random((300, 3))
+    y = np.array([lab.success for lab in oracle.simulate(X)])
+    settings = LearningSettings(svm_C_grid=(1.0, 100.0), svm_gamma_grid=(0.1, 1.0))
+
+    def learn():
+        clf = SuccessClassifier.from_settings(settings, random_state=0).fit(X, y)
+        return clf.best_params_, clf.platt_, clf.decision_function(X), select_dimensions(
+            X, y, settings, random_state=0)
+
+    serial = learn()
+    with PoolExecutor(2) as pool, jobs_on(pool):
+        pooled = learn()
+    assert serial[0] == pooled[0] and serial[1] == pooled[1]
+    np.testing.assert_array_equal(serial[2], pooled[2])
+    assert serial[3][0] == pooled[3][0] == (0, 1)
+    np.testing.assert_array_equal(serial[3][1], pooled[3][1])
+
+
 def test_probability_gradient_matches_finite_differences():
     clf = fit_disc(200, seed=1, dims=(0, 1))
     X = np.random.default_rng(5).uniform(0.1, 0.9, (30, 3))

@@ -26,7 +26,6 @@ from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
-from joblib import Parallel, delayed
 from scipy.spatial import cKDTree
 from scipy.special import digamma
 from sklearn.feature_selection import mutual_info_classif
@@ -34,6 +33,7 @@ from sklearn.feature_selection import mutual_info_classif
 from .active import learn_active
 from .classifier import SuccessClassifier
 from .oracles import Label, ancestors, topological_events
+from .parallel import parallel_map
 from .settings import LearningSettings
 
 __all__ = [
@@ -206,11 +206,9 @@ def select_dimensions(
     k = settings.mi_neighbors
 
     def mi_of(columns_list):
-        """Joint MI of each column set with ``y`` (in processes when ``n_jobs`` > 1)."""
-        if settings.n_jobs and settings.n_jobs > 1 and len(columns_list) > 1:
-            return Parallel(n_jobs=settings.n_jobs)(
-                delayed(joint_mutual_information)(c, y, k) for c in columns_list)
-        return [joint_mutual_information(c, y, k) for c in columns_list]
+        """Joint MI of each column set with ``y`` (see :mod:`rgmcad.learning.parallel`)."""
+        return parallel_map(joint_mutual_information, [(c, y, k) for c in columns_list],
+                            settings.n_jobs)
 
     selected: list[int] = []
     current = 0.0

@@ -101,8 +101,9 @@ class LearningSettings:
         learning over uniform samples was +0.024 (9 seeds, 9 wins) with this rule, +0.012
         (8 wins) when never searching again.
     n_jobs : int or None, default None
-        Worker processes for the grid search (scikit-learn's ``n_jobs``). Results do not
-        depend on it; the SVM itself is deterministic.
+        joblib processes for the grid searches, calibration folds and mutual information
+        estimates, unless an executor is lent with :func:`rgmcad.learning.parallel.jobs_on`
+        (``rgmcad optimize`` lends its simulation pool). Results do not depend on it.
     active_batch : int, default 10
         N_k of Alg. 2: simulations per active-learning iteration (paper, code). The
         candidate pool is ``10 * active_batch`` valid points (paper, code).
