@@ -105,3 +105,36 @@ def test_many_layouts_at_once_give_the_answers_of_one_scene_at_a_time(name):
     one_by_one = [check_validity(make_scene(scenario, v, parts)).valid for v in values]
     assert 0 < sum(one_by_one) < len(values)  # both answers occur
     assert LayoutValidity(scenario, parts)(values).tolist() == one_by_one
+
+
+def test_a_point_deep_in_two_box_bodies_means_the_meshes_penetrate():
+    """The shortcut that decides box-made pairs without manifold3d: whenever it finds a point
+    at least tolerance / 2 deep in both bodies, the exact test finds a penetration; and it
+    finds one for every crossing deeper than 2 mm."""
+    from rgmcad import validity
+    from rgmcad.geometry import pose_matrices
+
+    sc = tiny({"a": {**CUBE, "params": {"length": 0.2, "width": 0.03, "height": 0.004}},
+               "b": {"part": "track", "params": {"length": 0.1, "width": 0.06, "height": 0.02,
+                                                 "wall": 0.005}}}, E)
+    scene = scene_of(sc)
+    a, b = scene.bodies["a"].built, scene.bodies["b"].built
+    boxes_a, boxes_b = validity._box_pieces(a), validity._box_pieces(b)
+    assert boxes_a is not None and len(boxes_b[0]) == 3  # a track is three boxes
+    rng = np.random.default_rng(0)
+    n = 400
+    pose_a = pose_matrices(np.hstack([rng.uniform(-0.03, 0.03, (n, 3)),
+                                      rng.uniform(-40, 40, (n, 3))]))
+    pose_b = np.broadcast_to(np.eye(4), (n, 4, 4))
+    frames_a = pose_a[:, None] @ boxes_a[0][None]  # (n, 1, 4, 4): a plank is one box
+    found = np.zeros(n, dtype=bool)
+    for frame_b, half_b in zip(*boxes_b, strict=True):
+        found |= validity._boxes_share_a_deep_point(
+            frames_a[:, 0], np.broadcast_to(boxes_a[1][0], (n, 3)),
+            np.broadcast_to(frame_b, (n, 4, 4)), np.broadcast_to(half_b, (n, 3)),
+            validity.TOLERANCE / 2 + 1e-6)
+    depth = np.array([validity._pair_penetration(a, pa, b, pb)[0]
+                      for pa, pb in zip(pose_a, pose_b, strict=True)])
+    assert np.all(depth[found] > validity.TOLERANCE)
+    deep = depth > 2e-3
+    assert deep.sum() > 50 and found[deep].all()
