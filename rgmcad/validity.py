@@ -9,7 +9,8 @@ exactly by the signed distances of its vertices, and a ball against a part made 
 and cylinder pieces (which tile it exactly) by the distances of its centre to those pieces.
 
 :class:`LayoutValidity` gives the same yes/no answers for thousands of layouts at once (the
-samplers' case), with the poses and the box tests vectorised over layouts.
+samplers' case), with the poses, the box tests, the ball shortcut and a sufficient test for
+bodies made of boxes (two shrunk boxes that intersect) vectorised over layouts.
 
 The layout is valid when no penetration is deeper than ``tolerance`` (default 0.2 mm): bodies
 that touch are valid, a 0.5 mm overlap is not. The paper summed Bullet's contact depths against
@@ -266,8 +267,9 @@ class LayoutValidity:
     tolerance).valid``, computed with the same tests in the same terms. The poses, the plane
     bounds and the box pruning are vectorised over layouts; only the pairs whose oriented boxes
     overlap get an exact test, and a layout's tests stop at its first penetration. A sampler
-    tests thousands of random layouts per run, most of them invalid: this is ~3 times faster
-    than one scene at a time (``make_scene`` and the per-scene pruning were 60 % of the cost).
+    tests thousands of random layouts per run, most of them invalid: on 3072 Sobol layouts
+    this is 4 to 50 times faster than one scene at a time (BALLRUN 0.17 against 2.1 ms per
+    layout, SIMPLE 0.02 against 1.0 ms).
 
     Parameters
     ----------
