@@ -222,12 +222,21 @@ class RunStore:
         self.close()
 
 
+class _Missing:
+    def __repr__(self) -> str:
+        return "nothing"
+
+
+_MISSING = _Missing()
+
+
 def _differences(a, b, prefix: str = "") -> list[tuple[str, Any, Any]]:
-    """Keys (dotted) whose values differ between two JSON objects."""
+    """Keys (dotted) whose values differ between two JSON objects; a key only one of them
+    has counts even when the other side's value is None."""
     if isinstance(a, dict) and isinstance(b, dict):
         out = []
         for k in list(a) + [k for k in b if k not in a]:
-            out += _differences(a.get(k), b.get(k), f"{prefix}{k}.")
+            out += _differences(a.get(k, _MISSING), b.get(k, _MISSING), f"{prefix}{k}.")
         return out
     return [] if a == b else [(prefix.rstrip("."), a, b)]
 

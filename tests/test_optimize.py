@@ -175,6 +175,17 @@ def test_run_store_refuses_other_settings_and_a_second_user(tmp_path):
         RunStore(tmp_path, run_identity("s", "0" * 64, 0, TINY.replace(n_initial=41)))
     # n_jobs changes the speed, not the result
     RunStore(tmp_path, run_identity("s", "0" * 64, 0, TINY.replace(n_jobs=2))).close()
+    # a setting the run directory lacks (made by an older rgmcad) is named, even when the
+    # command's value is None
+    path = tmp_path / "settings.json"
+    stored = json.loads(path.read_text())
+    stored["settings"].pop("n_initial")
+    stored["settings"]["retired_option"] = None
+    path.write_text(json.dumps(stored))
+    with pytest.raises(ScenarioError) as refused:
+        RunStore(tmp_path, run_identity("s", "0" * 64, 0, TINY))
+    assert "settings.n_initial: run has nothing, command asks 40" in str(refused.value)
+    assert "settings.retired_option: run has None, command asks nothing" in str(refused.value)
 
 
 def test_scenario_problem_pickles_small_and_matches_the_simulator():
