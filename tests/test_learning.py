@@ -216,6 +216,29 @@ def test_jobs_lent_to_a_process_pool_give_the_serial_result():
     np.testing.assert_array_equal(serial[3][1], pooled[3][1])
 
 
+@pytest.mark.parametrize("classes", [2, 3])
+def test_mutual_information_estimate_follows_its_definition(classes):
+    """psi(n) + psi(k) - <psi(n_y)> - <psi(m_i)>, with m_i counted by brute force: the
+    samples (any class) closer, in max-norm, than the k-th neighbour of i's class."""
+    from scipy.special import digamma
+
+    from rgmcad.learning.factorize import joint_mutual_information
+
+    rng = np.random.default_rng(classes)
+    Z = rng.random((300, 3))
+    y = (Z[:, 0] + 0.5 * rng.random(300) > 0.8).astype(int)
+    if classes == 3:
+        y[rng.random(300) < 0.15] = 2
+    D = np.abs(Z[:, None, :] - Z[None, :, :]).max(axis=2)
+    k = 3
+    kth = np.array([np.sort(D[i, y == y[i]])[k] for i in range(300)])  # [0] is i itself
+    m = (D < kth[:, None]).sum(axis=1)
+    n_y = np.array([np.sum(y == c) for c in y])
+    expected = digamma(300) + digamma(k) - digamma(n_y).mean() - digamma(m).mean()
+    assert joint_mutual_information(Z, y, k) == pytest.approx(max(expected, 0.0), rel=1e-12)
+    assert expected > 0.05  # informative, so the clip at 0 is not what is tested
+
+
 def test_probability_gradient_matches_finite_differences():
     clf = fit_disc(200, seed=1, dims=(0, 1))
     X = np.random.default_rng(5).uniform(0.1, 0.9, (30, 3))

@@ -132,29 +132,39 @@ def joint_mutual_information(Z: np.ndarray, y: np.ndarray, n_neighbors: int = 3)
     ``psi(n) + psi(k) - <psi(n_y)> - <psi(m_i)>``, where ``m_i`` counts the samples closer
     to sample ``i`` than its k-th neighbour of the same class. Columns should be on
     comparable scales and free of ties (see :func:`select_dimensions`). Clipped at 0.
+
+    ``m_i`` is counted per class: the same-class samples that close are among the k + 1
+    the neighbour query returns, so only the other classes need a radius query (half the
+    time of one radius query over all samples, same counts).
     """
     Z = np.asarray(Z, dtype=float).reshape(len(y), -1)
     y = np.asarray(y)
     n = len(y)
-    radius = np.empty(n)
+    radius = np.zeros(n)
     class_size = np.empty(n)
-    for c in np.unique(y):
-        members = y == c
-        size = int(members.sum())
-        class_size[members] = size
-        if size < 2:  # a lone sample: no neighbour of its class (sklearn drops such samples)
-            radius[members] = 0.0
+    counts = np.ones(n, dtype=np.int64)  # a lone sample counts itself (it is dropped below)
+    members = {c: y == c for c in np.unique(y)}
+    trees = {c: cKDTree(Z[m]) for c, m in members.items()}
+    for c, m in members.items():
+        size = int(m.sum())
+        class_size[m] = size
+        if size < 2:  # no neighbour of its class (sklearn drops such samples)
             continue
         k = min(n_neighbors, size - 1)
-        dist, _ = cKDTree(Z[members]).query(Z[members], k=k + 1, p=np.inf)
-        radius[members] = np.nextafter(dist[:, -1], 0.0)
-    counts = cKDTree(Z).query_ball_point(Z, radius, p=np.inf, return_length=True)
+        dist, _ = trees[c].query(Z[m], k=k + 1, p=np.inf)  # itself first
+        radius[m] = np.nextafter(dist[:, -1], 0.0)
+        counts[m] = np.sum(dist <= radius[m][:, None], axis=1)
+    for c, m in members.items():
+        for other, tree in trees.items():
+            if other != c and class_size[m][0] > 1:
+                counts[m] += tree.query_ball_point(Z[m], radius[m], p=np.inf,
+                                                   return_length=True)
     keep = class_size > 1
     if not keep.any():
         return 0.0
     k = min(n_neighbors, int(class_size[keep].min()) - 1)
     mi = (digamma(keep.sum()) + digamma(k) - np.mean(digamma(class_size[keep]))
-          - np.mean(digamma(np.asarray(counts)[keep])))
+          - np.mean(digamma(counts[keep])))
     return max(0.0, float(mi))
 
 
