@@ -198,8 +198,3 @@ class ScenarioProblem:
         labels = r.labels()
         events = {e.name: (labels[e.name], e.time) for e in r.events}
         return SimRecord(r.outcome.value != "invalid", r.outcome.value, events, float(r.wall_time))
-
-    def is_valid(self, x: np.ndarray) -> bool:
-        """Whether the design vector ``x`` (d,) is physically valid (one row of
-        :meth:`validity`)."""
-        return bool(self.validity(np.asarray(x, dtype=float).reshape(1, -1))[0])

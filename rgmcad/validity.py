@@ -358,22 +358,22 @@ class LayoutValidity:
         rows, ks = np.nonzero(hits & valid[:, None])  # layout by layout, pairs in order
         if len(rows) == 0:
             return valid
-        a, b = rows * n + first[ks], rows * n + second[ks]
         apart = _boxes_apart(centres.reshape(-1, 3), np.tile(self.halves, (m, 1)),
-                             rot.reshape(-1, 3, 3), a, b, tol)
+                             rot.reshape(-1, 3, 3), rows * n + first[ks], rows * n + second[ks],
+                             tol)
         rows, ks = rows[~apart], ks[~apart]
         exact = np.ones(len(rows), dtype=bool)
         for k in np.unique(ks):
             if self.shortcuts[k] is None:
                 continue
             at = np.flatnonzero(ks == k)
-            kind, a, b = self.shortcuts[k]
-            if kind == "ball":
-                penetrates = self._ball_depths(a, b, poses[rows[at]]) > tol
+            kind, *args = self.shortcuts[k]
+            if kind == "ball":  # args: the ball's and the other body's solid indices
+                penetrates = self._ball_depths(*args, poses[rows[at]]) > tol
                 exact[at] = False
-            else:
-                penetrates = self._box_bodies_penetrate(a, b, poses[rows[at], first[k]],
-                                                            poses[rows[at], second[k]])
+            else:  # args: the two bodies' box pieces
+                penetrates = self._box_bodies_penetrate(*args, poses[rows[at], first[k]],
+                                                        poses[rows[at], second[k]])
                 exact[at] = ~penetrates
             valid[rows[at[penetrates]]] = False
         for row, k in zip(rows[exact], ks[exact], strict=True):

@@ -155,8 +155,10 @@ def joint_mutual_information(Z: np.ndarray, y: np.ndarray, n_neighbors: int = 3)
         radius[m] = np.nextafter(dist[:, -1], 0.0)
         counts[m] = np.sum(dist <= radius[m][:, None], axis=1)
     for c, m in members.items():
+        if m.sum() < 2:
+            continue
         for other, tree in trees.items():
-            if other != c and class_size[m][0] > 1:
+            if other != c:
                 counts[m] += tree.query_ball_point(Z[m], radius[m], p=np.inf,
                                                    return_length=True)
     keep = class_size > 1
