@@ -271,8 +271,13 @@ class RecordedProblem:
         self.event_parents = problem.event_parents
         self.n_replayed = 0
         self.n_simulated = 0
+        self._in_flight = 0  # batches submitted and not yet waited for
 
     def validity(self, X: np.ndarray) -> np.ndarray:
+        # While simulations are in flight the pool is busy and this process is waiting:
+        # testing here costs a millisecond, in the pool a wait for the batch ahead.
+        if self._in_flight:
+            return np.asarray(self.problem.validity(X), dtype=bool)
         return map_blocks(self.executor, self.problem.validity, X)
 
     def penetration(self, x: np.ndarray) -> float:
@@ -281,6 +286,13 @@ class RecordedProblem:
     def simulate_records(self, X: np.ndarray) -> list[SimRecord]:
         """One record per row of ``X`` (n, d): stored ones replayed, the others simulated
         (a vector repeated in ``X`` is simulated once)."""
+        return self.submit_records(X)()
+
+    def submit_records(self, X: np.ndarray) -> Callable[[], list[SimRecord]]:
+        """Start what :meth:`simulate_records` does; the returned ``wait()`` stores the new
+        simulations as they finish and gives the records. Batches must be waited for in the
+        order they were submitted (a vector also in an earlier batch still in flight is
+        simulated again, with the same result)."""
         X = np.atleast_2d(np.asarray(X, dtype=float))
         records: list[SimRecord | None] = [self.store.lookup(x) for x in X]
         todo: dict[bytes, int] = {}  # first row of each missing vector
@@ -288,25 +300,36 @@ class RecordedProblem:
             if r is None:
                 todo.setdefault(_key(X[i]), i)
         rows = list(todo.values())
-        try:
-            for i, record in zip(rows, self.executor.map(self.problem.simulate_one,
-                                                         [X[i] for i in rows]), strict=True):
-                self.store.append(X[i], record, sync=False)
-                self.n_simulated += 1
+        results = self.executor.map(self.problem.simulate_one, [X[i] for i in rows])
+        self._in_flight += 1
+
+        def wait() -> list[SimRecord]:
+            try:
+                for i, record in zip(rows, results, strict=True):
+                    self.store.append(X[i], record, sync=False)
+                    self.n_simulated += 1
+                    if self.on_simulation is not None:
+                        self.on_simulation(record, False)
+            finally:
+                self._in_flight -= 1
+                if rows:
+                    self.store.sync()
+            for i, r in enumerate(records):
+                if r is None:
+                    records[i] = self.store.lookup(X[i])
+                    if i == todo[_key(X[i])]:
+                        continue
+                self.n_replayed += 1
                 if self.on_simulation is not None:
-                    self.on_simulation(record, False)
-        finally:
-            if rows:
-                self.store.sync()
-        for i, r in enumerate(records):
-            if r is None:
-                records[i] = self.store.lookup(X[i])
-                if i == todo[_key(X[i])]:
-                    continue
-            self.n_replayed += 1
-            if self.on_simulation is not None:
-                self.on_simulation(records[i], True)
-        return records
+                    self.on_simulation(records[i], True)
+            return records
+
+        return wait
+
+    def submit(self, X: np.ndarray) -> Callable[[], list]:
+        """:meth:`submit_records` giving labels."""
+        wait = self.submit_records(X)
+        return lambda: [r.label() for r in wait()]
 
     def simulate(self, X: np.ndarray):
         return [r.label() for r in self.simulate_records(X)]

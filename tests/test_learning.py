@@ -384,6 +384,47 @@ def test_exploration_without_any_partial_success_continues_the_sobol_sequence():
     assert len(np.unique(res.X, axis=0)) == len(res.X)
 
 
+class SubmittingOracle(CountingOracle):
+    """Simulates each submitted batch at once (as a pool would start it) and records, for
+    every batch submitted, how many earlier batches the explorer had waited for."""
+
+    def __init__(self, oracle):
+        super().__init__(oracle)
+        self.waited = 0
+        self.waited_at_submit = []
+
+    def submit(self, X):
+        self.waited_at_submit.append(self.waited)
+        labels = self.simulate(X)
+
+        def wait():
+            self.waited += 1
+            return labels
+
+        return wait
+
+
+@pytest.mark.parametrize("lag", [0, 1, 3])
+def test_pipelined_exploration_draws_each_batch_from_all_but_the_last_lag_batches(lag):
+    settings = FAST.replace(n_initial=64, n_successes=25, exploration_batch=5,
+                            exploration_lag=lag)
+    eager = SubmittingOracle(small_oracle())
+    res = explore(eager, settings, np.random.default_rng(0), submit=eager.submit)
+    drawn_after = np.array(eager.waited_at_submit)  # the Sobol batch is not submitted
+    assert len(drawn_after) == res.n_iterations > lag
+    assert np.all(drawn_after >= np.arange(len(drawn_after)) - lag)
+    assert np.any(drawn_after == np.arange(len(drawn_after)) - lag)  # the lag is used
+    assert eager.waited == len(drawn_after)  # every batch in flight at the stop is kept
+    assert len(res.X) == 64 + 5 * res.n_iterations
+    assert res.n_global_successes >= 25
+    # batches that run when waited for (the default) give the same exploration
+    lazy = CountingOracle(small_oracle())
+    again = explore(lazy, settings, np.random.default_rng(0))
+    np.testing.assert_array_equal(again.X, res.X)
+    assert again.labels == res.labels
+    np.testing.assert_array_equal(np.vstack(lazy.simulated), np.vstack(eager.simulated))
+
+
 # --- factorisation ------------------------------------------------------------------------
 
 

@@ -188,6 +188,53 @@ def test_run_store_refuses_other_settings_and_a_second_user(tmp_path):
     assert "settings.retired_option: run has None, command asks nothing" in str(refused.value)
 
 
+class _LoggingPool:
+    """Executor stand-in: runs ``map`` lazily, as a pool hands results back, and logs
+    which function each call ran."""
+
+    workers = 2
+
+    def __init__(self):
+        self.calls = []
+
+    def map(self, fn, items):
+        self.calls.append(getattr(fn, "__name__", repr(fn)))
+        return map(fn, list(items))
+
+
+class _Plane:
+    """A 2-D problem stand-in: valid where x0 < 0.9, success where x0 + x1 > 1."""
+
+    dimension = 2
+    event_parents = {"a": ()}
+
+    def validity(self, X):
+        return np.atleast_2d(X)[:, 0] < 0.9
+
+    def simulate_one(self, x):
+        ok = bool(x[0] + x[1] > 1)
+        return SimRecord(True, "success" if ok else "failure", {"a": (ok, 0.1)}, 0.01)
+
+
+def test_batches_in_flight_are_stored_in_order_and_validity_is_tested_here_meanwhile(tmp_path):
+    from rgmcad.runstore import RecordedProblem
+
+    pool = _LoggingPool()
+    with RunStore(tmp_path, run_identity("s", "0" * 64, 0, TINY)) as store:
+        recorded = RecordedProblem(_Plane(), store, pool)
+        first = recorded.submit(np.array([[0.2, 0.3], [0.6, 0.7]]))
+        second = recorded.submit(np.array([[0.6, 0.7], [0.1, 0.95]]))  # one vector again
+        assert recorded.validity(np.array([[0.5, 0.5], [0.95, 0.5]])).tolist() == [True, False]
+        assert pool.calls == ["simulate_one", "simulate_one"]  # tested here, not in the pool
+        assert [lab.success for lab in first()] == [False, True]
+        assert [lab.success for lab in second()] == [True, True]
+        recorded.validity(np.array([[0.5, 0.5], [0.95, 0.5]]))
+        assert pool.calls[-1] == "validity"  # nothing in flight: the pool tests
+    rows = [json.loads(line) for line in (tmp_path / SIMULATIONS).read_text().splitlines()]
+    assert [r["vector"] for r in rows] == [[0.2, 0.3], [0.6, 0.7], [0.6, 0.7], [0.1, 0.95]]
+    assert [r["outcome"] for r in rows] == ["failure", "success", "success", "success"]
+
+
 def test_scenario_problem_pickles_small_and_matches_the_simulator():
     import pickle
 

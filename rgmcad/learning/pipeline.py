@@ -122,27 +122,41 @@ class _Recorder:
         self.stages: list[str] = []
 
     def __call__(self, X: np.ndarray, stage: str) -> list[Label]:
+        return self.submit(X, stage)()
+
+    def submit(self, X: np.ndarray, stage: str) -> Callable[[], list[Label]]:
+        """Start simulating ``X``; the returned ``wait()`` gives its labels and records them.
+        The problem's own ``submit`` (a problem that runs simulations elsewhere) starts them
+        now; otherwise they run when waited for. Batches must be waited for in the order
+        they were submitted."""
         X = np.atleast_2d(np.asarray(X, dtype=float))
         if len(X) == 0:
-            return []
-        if self.executor is None:
-            out = list(self.problem.simulate(X))
-        else:  # one task per design vector; map keeps the order
-            out = [
-                lab for part in self.executor.map(self.problem.simulate, [X[i : i + 1]
-                                                                         for i in range(len(X))])
-                for lab in part
-            ]
-        if len(out) != len(X):
-            raise ValueError(
-                f"problem.simulate returned {len(out)} labels for {len(X)} design vectors"
-            )
-        self.X.append(X)
-        self.labels.extend(out)
-        self.stages.extend([stage] * len(X))
-        if self.on_progress is not None:
-            self.on_progress(Progress(stage, len(self.labels), f"{len(X)} simulated"))
-        return out
+            return list
+        if self.executor is not None:  # one task per design vector; map keeps the order
+            parts = self.executor.map(self.problem.simulate, [X[i : i + 1] for i in range(len(X))])
+
+            def labels():
+                return [lab for part in parts for lab in part]
+        elif hasattr(self.problem, "submit"):
+            labels = self.problem.submit(X)
+        else:
+            def labels():
+                return list(self.problem.simulate(X))
+
+        def wait() -> list[Label]:
+            out = list(labels())
+            if len(out) != len(X):
+                raise ValueError(
+                    f"problem.simulate returned {len(out)} labels for {len(X)} design vectors"
+                )
+            self.X.append(X)
+            self.labels.extend(out)
+            self.stages.extend([stage] * len(X))
+            if self.on_progress is not None:
+                self.on_progress(Progress(stage, len(self.labels), f"{len(X)} simulated"))
+            return out
+
+        return wait
 
 
 def learn_and_optimize(
@@ -190,7 +204,8 @@ def learn_and_optimize(
             on_progress(Progress(stage, len(record.labels), message))
 
     exploration = explore(
-        problem, settings, rng, simulate=lambda X: record(X, "exploration")
+        problem, settings, rng, simulate=lambda X: record(X, "exploration"),
+        submit=lambda X: record.submit(X, "exploration"),
     )
     report(
         "exploration",

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import logging
 import warnings
+from collections import deque
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
@@ -30,6 +31,7 @@ logger = logging.getLogger(__name__)
 
 SimulateFn = Callable[[np.ndarray], list[Label]]
 ValidityFn = Callable[[np.ndarray], np.ndarray]
+SubmitFn = Callable[[np.ndarray], Callable[[], Sequence[Label]]]
 
 
 class SobolStream:
@@ -205,6 +207,7 @@ def explore(
     rng: np.random.Generator,
     *,
     simulate: SimulateFn | None = None,
+    submit: SubmitFn | None = None,
 ) -> Exploration:
     """Initial exploration by adaptive sampling (paper Alg. 1, authors'
     ``find_successful_samples_adaptive``).
@@ -222,6 +225,12 @@ def explore(
     the iteration continues the Sobol sequence instead: with no partial success to grow
     from, space filling is the best guess.
 
+    With ``settings.exploration_lag`` = L > 0 the iterations overlap: batch k is drawn from
+    the results of the batches before k - L, so that L batches simulate while the next one
+    is drawn and tested (see ``LearningSettings.exploration_lag``). The batches still in
+    flight when the stop test passes are simulated and kept. The result depends on L, never
+    on timing; L = 0 is the authors' sequential loop.
+
     Parameters
     ----------
     problem : Problem
@@ -230,12 +239,19 @@ def explore(
     simulate : callable, optional
         ``simulate(X) -> list[Label]``, default ``problem.simulate``; the driver passes one
         that records and parallelises.
+    submit : callable, optional
+        ``submit(X) -> wait`` starts simulating ``X`` and returns ``wait() -> list[Label]``;
+        the batches are waited for in the order they were submitted. Default: ``simulate``,
+        run when waited for.
 
     Returns
     -------
     Exploration
     """
     simulate = simulate or problem.simulate
+    if submit is None:
+        def submit(X):
+            return lambda: simulate(X)
     s = settings
     d = problem.dimension
     sobol = SobolStream(d, s.sobol_scramble, rng)
@@ -248,13 +264,29 @@ def explore(
         )
     Xs = [X0]
     labels = list(simulate(X0)) if len(X0) else []
-    n_succ = np.array([lab.n_success for lab in labels], dtype=float)
+    n_succ = [lab.n_success for lab in labels]
     n_global = sum(lab.success for lab in labels)
+    in_flight: deque[tuple[np.ndarray, Callable[[], Sequence[Label]]]] = deque()
     k = 0
+    drawing = True
     mixture_tested = mixture_valid = 0  # to size the validity calls (not the result)
-    while n_global < s.n_successes and k < s.exploration_max_iter:
-        top = np.argsort(-n_succ, kind="stable")[: min(s.n_successes, len(n_succ))]
-        w = n_succ[top]
+    while True:
+        while in_flight and (len(in_flight) > s.exploration_lag or not drawing):
+            Xk, wait = in_flight.popleft()
+            new = list(wait())
+            Xs.append(Xk)
+            labels.extend(new)
+            n_succ.extend(lab.n_success for lab in new)
+            n_global += sum(lab.success for lab in new)
+            logger.debug("exploration: %d samples, %d global successes", len(labels), n_global)
+        if not drawing:
+            break
+        if n_global >= s.n_successes or k >= s.exploration_max_iter:
+            drawing = False  # wait for the batches in flight, then stop
+            continue
+        counts = np.asarray(n_succ, dtype=float)
+        top = np.argsort(-counts, kind="stable")[: min(s.n_successes, len(counts))]
+        w = counts[top]
         if w.sum() > 0:
             cands = sample_mixture(
                 np.vstack(Xs)[top], w, s.exploration_variance,
@@ -271,12 +303,7 @@ def explore(
         if len(Xk) == 0:
             logger.warning("exploration iteration %d: no valid candidate", k)
             continue
-        new = list(simulate(Xk))
-        Xs.append(Xk)
-        labels.extend(new)
-        n_succ = np.concatenate([n_succ, [lab.n_success for lab in new]])
-        n_global += sum(lab.success for lab in new)
-        logger.debug("exploration iteration %d: %d global successes", k, n_global)
+        in_flight.append((Xk, submit(Xk)))
     X = stack_rows(Xs, d)
     if n_global < s.n_successes:
         logger.info(

@@ -43,6 +43,10 @@ class LearningSettings:
         N_k: valid samples drawn from the mixture per exploration iteration (paper, code).
     exploration_max_iter : int, default 500
         k_e: cap on exploration iterations (paper, code; "never reached" per the paper).
+    exploration_lag : int, default 1
+        Batches of exploration that simulate while the next one is drawn: batch k is drawn
+        from the results of the batches before k - lag (0 = the paper's sequential loop,
+        where every batch waits for the one before). MEASUREMENTS TO COME.
     exploration_variance : float, default 0.01
         sigma of Eq. 1: each mixture component has covariance ``sigma * I``. It is a
         **variance** (standard deviation 0.1), as in the authors' code; the paper's notation
@@ -248,6 +252,7 @@ class LearningSettings:
     n_successes: int = 100
     exploration_batch: int = 10
     exploration_max_iter: int = 500
+    exploration_lag: int = 1
     exploration_variance: float = 0.01
     sobol_scramble: bool = True
     max_draws_factor: int = 100
@@ -308,7 +313,7 @@ class LearningSettings:
                 raise ValueError(
                     f"LearningSettings.{name} must be a positive integer, got {value!r}"
                 )
-        for name in ("exploration_max_iter", "active_max_iter", "tolerance_bisections",
+        for name in ("exploration_max_iter", "exploration_lag", "active_max_iter", "tolerance_bisections",
                      "mi_null_permutations", "verify_samples"):
             value = getattr(self, name)
             if int(value) != value or value < 0:
