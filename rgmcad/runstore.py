@@ -245,6 +245,11 @@ class RecordedProblem:
     """A :class:`~rgmcad.learning.oracles.Problem` that answers from a :class:`RunStore`
     and runs what it lacks on an executor, storing each simulation as it finishes.
 
+    :meth:`submit` starts a batch and returns at once, so the learner can draw the next
+    batch meanwhile; batches are stored in the order they are waited for, which is the
+    order they were submitted. While any batch is in flight, :meth:`validity` tests here
+    instead of queueing behind the simulations in the pool.
+
     Parameters
     ----------
     problem : ScenarioProblem

