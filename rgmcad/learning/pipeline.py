@@ -131,7 +131,7 @@ class _Recorder:
         they were submitted."""
         X = np.atleast_2d(np.asarray(X, dtype=float))
         if len(X) == 0:
-            return list
+            return list  # nothing to simulate: wait() gives []
         if self.executor is not None:  # one task per design vector; map keeps the order
             parts = self.executor.map(self.problem.simulate, [X[i : i + 1] for i in range(len(X))])
 

@@ -320,8 +320,8 @@ class LearningSettings:
                 raise ValueError(
                     f"LearningSettings.{name} must be a positive integer, got {value!r}"
                 )
-        for name in ("exploration_max_iter", "exploration_lag", "active_max_iter", "tolerance_bisections",
-                     "mi_null_permutations", "verify_samples"):
+        for name in ("exploration_max_iter", "exploration_lag", "active_max_iter",
+                     "tolerance_bisections", "mi_null_permutations", "verify_samples"):
             value = getattr(self, name)
             if int(value) != value or value < 0:
                 raise ValueError(
