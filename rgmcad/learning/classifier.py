@@ -373,13 +373,11 @@ def _score_settings(Z, y, train, test, settings):
     D_train = np.maximum(norms[:, None] + norms[None, :] - 2.0 * (A @ A.T), 0.0)
     D_test = np.maximum((B * B).sum(axis=1)[:, None] + norms[None, :] - 2.0 * (B @ A.T), 0.0)
     scores = []
-    kernels: dict[float, tuple[np.ndarray, np.ndarray]] = {}
+    gamma = None  # the jobs group settings by gamma: one pair of matrices at a time
     for p in settings:
-        gamma = float(p["gamma"])
-        if gamma not in kernels:
-            kernels.clear()  # the jobs group settings by gamma: keep one pair of matrices
-            kernels[gamma] = (np.exp(-gamma * D_train), np.exp(-gamma * D_test))
-        K_train, K_test = kernels[gamma]
+        if float(p["gamma"]) != gamma:
+            gamma = float(p["gamma"])
+            K_train, K_test = np.exp(-gamma * D_train), np.exp(-gamma * D_test)
         svm = SVC(kernel="precomputed", C=float(p["C"]), class_weight=p["class_weight"],
                   cache_size=512).fit(K_train, ytrain)
         f = K_test[:, svm.support_] @ svm.dual_coef_[0] + svm.intercept_[0]

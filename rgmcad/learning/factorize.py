@@ -155,7 +155,7 @@ def joint_mutual_information(Z: np.ndarray, y: np.ndarray, n_neighbors: int = 3)
         radius[m] = np.nextafter(dist[:, -1], 0.0)
         counts[m] = np.sum(dist <= radius[m][:, None], axis=1)
     for c, m in members.items():
-        if m.sum() < 2:
+        if class_size[m][0] < 2:
             continue
         for other, tree in trees.items():
             if other != c:
