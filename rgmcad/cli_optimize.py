@@ -236,7 +236,7 @@ def _write_outputs(scenario, args, store, recorded, result, chosen, wall_time) -
     low, high = bounds(scenario)
     per_event = {e: float(p[0]) for e, p in model.event_probabilities(x).items()}
     probability = float(model.success_proba(x)[0])
-    weakest = min(per_event, key=per_event.get) if per_event else None
+    weakest, weakest_probability = model.weakest_link(x)
     tol = placement_tolerance(model, x, result.settings) if chosen["source"] != "optimum" \
         else result.tolerances  # the chosen layout may not be the optimum
     tolerances = {f.name: [float(tol[j, 0] * (high[j] - low[j])),
@@ -264,6 +264,7 @@ def _write_outputs(scenario, args, store, recorded, result, chosen, wall_time) -
         "probability": probability,
         "event_probabilities": per_event,
         "weakest_event": weakest,
+        "weakest_probability": weakest_probability,
         "tolerances": tolerances,
         "influence": {f.name: float(v) for f, v in zip(scenario.free, influence, strict=True)},
         "verified": chosen["verified"],
@@ -325,7 +326,8 @@ def _print_summary(summary: dict, as_json: bool, wall_time: float | None = None)
     weakest = summary["weakest_event"]
     _out(f"{summary['scenario']}: {summary['layout']}")
     _out(f"predicted P(success) {summary['probability']:.3f}, weakest link {weakest} "
-         f"({summary['event_probabilities'].get(weakest, 1.0):.3f}); {summary['source']}")
+         f"({summary.get('weakest_probability', summary['event_probabilities'].get(weakest, 1.0)):.3f}"
+         f"); {summary['source']}")
     _out(f"{summary['simulations']} simulations ({summary['successes']} successes, "
          f"{summary['replayed']} replayed) in {summary['wall_time']:.0f} s")
     _out("placement tolerances (down / up):")

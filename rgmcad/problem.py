@@ -8,10 +8,8 @@ in a few hundred bytes; the scenario and its built parts are loaded lazily, once
 :class:`~rgmcad.learning.oracles.Label` follows. Importing this module does not import the
 learner (scikit-learn alone takes 3 s to import), so pool workers start fast.
 
-Causal graph handed to the learner: an event with ``join = "all"`` (the default) waits for
-its ``after`` events, as the learner assumes. An event with ``join = "any"`` gets no parents:
-its label is None unless it woke up, so the samples that define it are exactly those where
-some parent succeeded, which is that event's conditional data set.
+The causal graph handed to the learner is the scenario's: ``event_parents`` (each event's
+``after``) and ``any_joins`` (the events with ``join = "any"``).
 """
 
 from __future__ import annotations
@@ -25,7 +23,7 @@ import numpy as np
 
 from rgmcad.build import DEFAULT_BUILD_DIR
 
-__all__ = ["SimRecord", "ScenarioProblem", "context", "scenario_digest", "event_parents"]
+__all__ = ["SimRecord", "ScenarioProblem", "context", "scenario_digest", "event_parents", "any_joins"]
 
 
 @dataclass(frozen=True)
@@ -74,9 +72,13 @@ def scenario_digest(path: str | Path) -> str:
 
 
 def event_parents(scenario) -> dict[str, tuple[str, ...]]:
-    """The causal graph as the learner reads it (see the module docstring for ``any``)."""
-    return {name: (tuple(ev.after) if ev.join == "all" else ())
-            for name, ev in scenario.events.items()}
+    """Each event of the scenario's causal graph and the events it waits for."""
+    return {name: tuple(ev.after) for name, ev in scenario.events.items()}
+
+
+def any_joins(scenario) -> frozenset[str]:
+    """The events that wake when any of their parents succeeded."""
+    return frozenset(name for name, ev in scenario.events.items() if ev.join == "any")
 
 
 _CONTEXTS: dict[tuple[str, str], tuple[object, dict]] = {}
@@ -116,12 +118,15 @@ class ScenarioProblem:
         d.
     event_parents : Mapping[str, tuple[str, ...]]
         The causal graph (see :func:`event_parents`).
+    any_joins : frozenset of str
+        Its events with ``join = "any"``.
     """
 
     scenario_path: str
     build_dir: str = str(DEFAULT_BUILD_DIR)
     dimension: int = field(init=False)
     event_parents: Mapping[str, tuple[str, ...]] = field(init=False)
+    any_joins: frozenset[str] = field(init=False)
 
     def __post_init__(self):
         object.__setattr__(self, "scenario_path", str(Path(self.scenario_path).resolve()))
@@ -129,10 +134,12 @@ class ScenarioProblem:
         scenario = self.scenario
         object.__setattr__(self, "dimension", scenario.dimension)
         object.__setattr__(self, "event_parents", event_parents(scenario))
+        object.__setattr__(self, "any_joins", any_joins(scenario))
 
     def __getstate__(self):
         return {"scenario_path": self.scenario_path, "build_dir": self.build_dir,
-                "dimension": self.dimension, "event_parents": dict(self.event_parents)}
+                "dimension": self.dimension, "event_parents": dict(self.event_parents),
+                "any_joins": self.any_joins}
 
     def __setstate__(self, state):
         for k, v in state.items():

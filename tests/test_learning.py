@@ -351,6 +351,7 @@ class CountingOracle:
         self.oracle = oracle
         self.dimension = oracle.dimension
         self.event_parents = oracle.event_parents
+        self.any_joins = oracle.any_joins
         self.simulated = []
 
     def validity(self, X):

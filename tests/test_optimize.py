@@ -207,6 +207,7 @@ class _Plane:
 
     dimension = 2
     event_parents = {"a": ()}
+    any_joins = frozenset()
 
     def validity(self, X):
         return np.atleast_2d(X)[:, 0] < 0.9

@@ -9,7 +9,8 @@ success probability over the causal graph (:func:`fit_spd`), constrained refinem
 lets the simulator choose the layout to return among the optimum and the best-rated
 simulated successes.
 
-Modules, in pipeline order: ``settings``, ``oracles`` (the simulator protocol and synthetic
+Modules, in pipeline order: ``settings``, ``graph`` (the causal graph's order and success
+logic), ``oracles`` (the simulator protocol and synthetic
 problems), ``sampling``, ``classifier``, ``active``, ``factorize``, ``optimize``, ``pipeline``,
 ``verify``.
 """
@@ -31,6 +32,7 @@ from .factorize import (
     select_dimensions,
     smooth_min,
 )
+from .graph import Requirement, SuccessLogic, ancestors, topological_events
 from .optimize import (
     OptimizationResult,
     maximize_robustness,
@@ -46,8 +48,6 @@ from .oracles import (
     Problem,
     ProductOracle,
     SlabRegion,
-    ancestors,
-    topological_events,
 )
 from .pipeline import LearningResult, Progress, learn_and_optimize
 from .sampling import Exploration, SobolStream, explore, first_valid, sample_mixture
@@ -74,10 +74,12 @@ __all__ = [
     "Problem",
     "ProductOracle",
     "Progress",
+    "Requirement",
     "SPDFit",
     "SPDModel",
     "SobolStream",
     "SuccessClassifier",
+    "SuccessLogic",
     "Verification",
     "analyse_event",
     "ancestors",

@@ -22,7 +22,7 @@ dimensions, stored under the name :data:`GLOBAL_EVENT`.
 from __future__ import annotations
 
 import logging
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Collection, Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -32,7 +32,8 @@ from sklearn.feature_selection import mutual_info_classif
 
 from .active import learn_active
 from .classifier import SuccessClassifier
-from .oracles import Label, ancestors, topological_events
+from .graph import SuccessLogic, ancestors, topological_events
+from .oracles import Label
 from .parallel import parallel_map
 from .settings import LearningSettings
 
@@ -343,6 +344,9 @@ class SPDModel:
         Whether constant factors enter :meth:`objective`.
     dimension : int
         d (informative; 0 when unknown).
+    logic : SuccessLogic or None
+        How the factors combine into the graph's success (None: every factor must succeed,
+        Eq. 6; otherwise any-joins make alternatives, see :mod:`.logic`).
     """
 
     events: tuple[str, ...]
@@ -351,6 +355,11 @@ class SPDModel:
     alpha: float = 1.0
     include_certain_events: bool = False
     dimension: int = 0
+    logic: SuccessLogic | None = None
+
+    @property
+    def _alternatives(self) -> bool:
+        return self.logic is not None and not self.logic.is_conjunction
 
     @property
     def learned_events(self) -> tuple[str, ...]:
@@ -369,9 +378,30 @@ class SPDModel:
 
     def success_proba(self, X) -> np.ndarray:
         """(n,) predicted P(the whole graph succeeds | x): the product of the factors
-        (Eq. 6)."""
+        (Eq. 6), or with any-joins the probability that one alternative succeeds where the
+        graph offers several."""
         probs = self.event_probabilities(X)
+        if self._alternatives:
+            return self.logic.probability(probs)
         return np.prod(np.stack(list(probs.values())), axis=0)
+
+    def requirement_probabilities(self, X) -> dict[str, np.ndarray]:
+        """Per requirement of the graph's success (an event, or a group of alternatives named
+        ``any(...)``), its (n,) probability; with all-joins, the factors themselves."""
+        probs = self.event_probabilities(X)
+        if not self._alternatives:
+            return probs
+        return {r.name: self.logic.requirement_probability(r, probs)
+                for r in self.logic.requirements}
+
+    def weakest_link(self, x) -> tuple[str | None, float]:
+        """The least probable requirement at ``x`` (d,) and its probability."""
+        probs = {k: float(v[0]) for k, v in self.requirement_probabilities(
+            np.asarray(x, dtype=float).reshape(1, -1)).items()}
+        if not probs:
+            return None, 1.0
+        name = min(probs, key=probs.get)
+        return name, probs[name]
 
     def objective(self, x, offsets: np.ndarray | None = None) -> tuple[float, np.ndarray]:
         """Smooth minimum of the factors' probabilities at ``x`` (d,) and its gradient (d,).
@@ -388,6 +418,8 @@ class SPDModel:
             with those errors) before the smooth minimum.
         """
         x = np.asarray(x, dtype=float).reshape(1, -1)
+        if self._alternatives:
+            return self._objective_with_alternatives(x, offsets)
         names = self.objective_events
         if not names:
             return float(self.success_proba(x)[0]), np.zeros(x.shape[1])
@@ -397,6 +429,28 @@ class SPDModel:
         for i, e in enumerate(names):
             p, g = self.models[e].success_proba_and_gradient(P)
             r[i], G[i] = p.mean(), g.mean(axis=0)
+        s, ds = smooth_min(r, self.alpha)
+        return s, ds @ G
+
+    def _objective_with_alternatives(self, x, offsets) -> tuple[float, np.ndarray]:
+        """:meth:`objective` over the requirements: a group of alternatives enters as the
+        probability that one of them succeeds (its gradient by the chain rule through the
+        multilinear group probability)."""
+        learned = set(self.learned_events)
+        terms = [r for r in self.logic.requirements
+                 if self.include_certain_events or learned & set(r.events)]
+        if not terms:
+            return float(self.success_proba(x)[0]), np.zeros(x.shape[1])
+        P = x if offsets is None else x + np.asarray(offsets, dtype=float)
+        probs, grads = {}, {}
+        for e in {e for r in terms for e in r.events}:
+            probs[e], grads[e] = self.models[e].success_proba_and_gradient(P)
+        r = np.empty(len(terms))
+        G = np.empty((len(terms), x.shape[1]))
+        for i, term in enumerate(terms):
+            r[i] = self.logic.requirement_probability(term, probs).mean()
+            sens = self.logic.requirement_sensitivity(term, probs)
+            G[i] = sum((sens[e][:, None] * grads[e]).mean(axis=0) for e in term.events)
         s, ds = smooth_min(r, self.alpha)
         return s, ds @ G
 
@@ -433,6 +487,7 @@ def fit_spd(
     simulate: SimulateFn,
     settings: LearningSettings,
     rng: np.random.Generator,
+    any_joins: Collection[str] = frozenset(),
 ) -> SPDFit:
     """Learn the success-probability model from exploration data (paper sections 5.2-6).
 
@@ -452,6 +507,10 @@ def fit_spd(
         bookkeeping.
     settings : LearningSettings
     rng : numpy.random.Generator
+    any_joins : collection of str
+        Events that wake when any parent succeeded. Such an event's factor is learnt on the
+        samples where it woke (its label is None otherwise), and the model combines the
+        factors according to the graph (see :mod:`.logic`).
 
     Returns
     -------
@@ -477,6 +536,10 @@ def fit_spd(
         )
 
     order = topological_events(event_parents)
+    logic = SuccessLogic(event_parents, frozenset(any_joins))
+    # the parents a factor is conditioned on: an any-join's label already says it woke
+    event_parents = {e: () if e in logic.any_joins else tuple(ps)
+                     for e, ps in event_parents.items()}
     # Running record of every labelled sample (exploration first, then queries in order).
     all_X: list[np.ndarray] = [X]
     all_labels: list[Label] = list(labels)
@@ -530,7 +593,8 @@ def fit_spd(
             "event %r: dims %s, %d queries (%d labelled), accuracy %.3f",
             event, analysis.dims, res.n_queries, res.n_labelled, res.classifier.cv_accuracy_,
         )
-    model = SPDModel(order, models, True, s.smooth_min_alpha, s.include_certain_events, d)
+    model = SPDModel(order, models, True, s.smooth_min_alpha, s.include_certain_events, d,
+                     logic=None if logic.is_conjunction else logic)
     return SPDFit(model, analyses, n_sim, n_lab, acc)
 
 

@@ -10,12 +10,13 @@ physically invalid, with penetration = depth inside the ball. Tests and examples
 from __future__ import annotations
 
 import hashlib
-from collections.abc import Mapping, Sequence
+from collections.abc import Mapping
 from dataclasses import dataclass, field
-from graphlib import CycleError, TopologicalSorter
 from typing import Protocol, runtime_checkable
 
 import numpy as np
+
+from .graph import SuccessLogic, topological_events
 
 __all__ = [
     "Label",
@@ -24,8 +25,6 @@ __all__ = [
     "BallRegion",
     "OracleEvent",
     "ProductOracle",
-    "topological_events",
-    "ancestors",
 ]
 
 
@@ -64,11 +63,14 @@ class Problem(Protocol):
     dimension : int
         d, the length of a design vector.
     event_parents : Mapping[str, tuple[str, ...]]
-        The causal graph, a DAG: each event and the events it waits for (all must succeed).
+        The causal graph, a DAG: each event and the events it waits for.
+    any_joins : frozenset of str
+        Events that wake when any of their parents succeeded; the others wait for all.
     """
 
     dimension: int
     event_parents: Mapping[str, tuple[str, ...]]
+    any_joins: frozenset[str]
 
     def validity(self, X: np.ndarray) -> np.ndarray:
         """(n,) bool: whether each row of ``X`` (n, d) in [0, 1]^d is physically valid."""
@@ -86,49 +88,6 @@ class Problem(Protocol):
     # pool) and returns ``wait() -> list[Label]``. The exploration then draws its next batch
     # while the last one simulates (``LearningSettings.exploration_lag``); without it, a
     # batch simply runs when waited for. Same labels either way.
-
-
-def topological_events(event_parents: Mapping[str, Sequence[str]]) -> tuple[str, ...]:
-    """Events ordered so that every event comes after its parents.
-
-    Ties keep the mapping's order, so the result is deterministic.
-
-    Raises
-    ------
-    ValueError
-        If a parent is not an event or the graph has a cycle.
-    """
-    names = list(event_parents)
-    for e, parents in event_parents.items():
-        missing = [p for p in parents if p not in event_parents]
-        if missing:
-            raise ValueError(
-                f"event {e!r} waits for unknown event(s) {missing}; events are {names}"
-            )
-    sorter = TopologicalSorter({e: tuple(event_parents[e]) for e in names})
-    try:
-        sorter.prepare()
-    except CycleError as err:
-        raise ValueError(f"the causal graph has a cycle: {err.args[1]}") from None
-    rank = {e: i for i, e in enumerate(names)}
-    order: list[str] = []
-    while sorter.is_active():
-        ready = sorted(sorter.get_ready(), key=rank.__getitem__)
-        order.extend(ready)
-        sorter.done(*ready)
-    return tuple(order)
-
-
-def ancestors(event_parents: Mapping[str, Sequence[str]], event: str) -> tuple[str, ...]:
-    """All ancestors of ``event`` (parents, their parents, ...), in topological order."""
-    seen: set[str] = set()
-    stack = list(event_parents[event])
-    while stack:
-        e = stack.pop()
-        if e not in seen:
-            seen.add(e)
-            stack.extend(event_parents[e])
-    return tuple(e for e in topological_events(event_parents) if e in seen)
 
 
 # --- analytic regions -------------------------------------------------------------------------
@@ -219,19 +178,23 @@ class OracleEvent:
         Dimensions the event depends on (its true subspace); empty = always succeeds.
     region : BoxRegion, BallRegion, SlabRegion or None
         Success region over ``dims``; None = always succeeds once the parents did.
+    join : str
+        ``"all"``: the event wakes when all its parents succeeded; ``"any"``: when one did.
     """
 
     parents: tuple[str, ...] = ()
     dims: tuple[int, ...] = ()
     region: BoxRegion | BallRegion | SlabRegion | None = None
+    join: str = "all"
 
 
 @dataclass(frozen=True)
 class ProductOracle:
     """A synthetic :class:`Problem` with analytic success regions and invalid balls.
 
-    Event ``e`` succeeds iff all its parents succeeded and ``x[dims_e]`` lies in its region.
-    An event whose parents did not all succeed gets None (it never woke up). Labels are a
+    Event ``e`` succeeds iff it woke (all its parents succeeded, or one of them for
+    ``join="any"``) and ``x[dims_e]`` lies in its region; an event that never woke gets None.
+    The whole graph succeeds when every leaf event does. Labels are a
     deterministic function of ``x`` and ``seed``, like a deterministic physics engine: the
     same point always gets the same label, whatever the order of the calls.
 
@@ -260,10 +223,16 @@ class ProductOracle:
     softness: float = 0.0
     seed: int = 0
     event_parents: Mapping[str, tuple[str, ...]] = field(init=False, repr=False)
+    any_joins: frozenset[str] = field(init=False, repr=False)
 
     def __post_init__(self):
         parents = {name: tuple(ev.parents) for name, ev in self.events.items()}
         topological_events(parents)  # validates the graph
+        for name, ev in self.events.items():
+            if ev.join not in ("all", "any"):
+                raise ValueError(f"event {name!r}: join {ev.join!r}; allowed: all, any")
+        object.__setattr__(self, "any_joins", frozenset(
+            name for name, ev in self.events.items() if ev.join == "any"))
         for name, ev in self.events.items():
             if ev.region is not None:
                 n_reg = ev.region.dimension
@@ -294,8 +263,11 @@ class ProductOracle:
         return out
 
     def global_probability(self, X: np.ndarray) -> np.ndarray:
-        """True P(the whole graph succeeds | x), (n,): the product over events."""
+        """True P(the whole graph succeeds | x), (n,): the product over events, or with
+        any-joins the graph's success formula (:class:`~.graph.SuccessLogic`)."""
         probs = self.success_probability(X)
+        if self.any_joins:
+            return SuccessLogic(self.event_parents, self.any_joins).probability(probs)
         return np.prod(np.stack(list(probs.values())), axis=0)
 
     def event_signed_distance(self, name: str, X: np.ndarray) -> np.ndarray:
@@ -329,6 +301,8 @@ class ProductOracle:
         probs = self.success_probability(X)
         names = list(self.events)
         order = topological_events(self.event_parents)
+        has_child = {p for ps in self.event_parents.values() for p in ps}
+        leaves = [e for e in names if e not in has_child]
         labels = []
         for i, x in enumerate(X):
             if not valid[i]:
@@ -337,12 +311,13 @@ class ProductOracle:
             u = self._uniforms(x, len(order))
             state: dict[str, bool | None] = {}
             for k, e in enumerate(order):
-                if all(state[p] is True for p in self.event_parents[e]):
+                woke = [state[p] is True for p in self.event_parents[e]]
+                if any(woke) if e in self.any_joins else all(woke):
                     state[e] = bool(u[k] < probs[e][i])
                 else:
                     state[e] = None
             events = {e: state[e] for e in names}
-            labels.append(Label(True, all(v is True for v in events.values()), events))
+            labels.append(Label(True, all(events[e] is True for e in leaves), events))
         return labels
 
     def _uniforms(self, x: np.ndarray, n: int) -> np.ndarray:

@@ -55,12 +55,14 @@ class LearningResult:
     x : (d,) float
         Optimised design vector in ``[0, 1]^d`` (valid: penetration exactly 0).
     probability : float
-        Predicted P(success | x): the product of the factors.
+        Predicted P(success | x): the product of the factors (combined along the causal
+        graph's alternatives where it has any-joins).
     event_probabilities : Mapping[str, float]
         Each factor's predicted probability at ``x`` (``{GLOBAL_EVENT: p}`` when not
         factorised).
     weakest_event : str or None
-        The factor with the lowest probability at ``x``.
+        The requirement with the lowest probability at ``x``: an event, or a group of
+        alternatives ``any(...)`` (see :meth:`SPDModel.weakest_link`).
     tolerances : (d, 2) float
         Per coordinate, how far it may move down / up (normalised units) before the
         predicted probability falls below ``tolerance_ratio`` of ``probability``.
@@ -214,7 +216,7 @@ def learn_and_optimize(
 
     fit = fit_spd(
         exploration.X, exploration.labels, problem.event_parents, problem.validity, record,
-        settings, rng,
+        settings, rng, any_joins=problem.any_joins,
     )
     model = fit.model
     report("model", f"learnt factors: {list(model.learned_events)}")
@@ -234,7 +236,7 @@ def learn_and_optimize(
     x = opt.x
     per_event = {e: float(p[0]) for e, p in model.event_probabilities(x).items()}
     probability = float(model.success_proba(x)[0])
-    weakest = min(per_event, key=per_event.get) if per_event else None
+    weakest, _ = model.weakest_link(x)
     tolerances = placement_tolerance(model, x, settings)
 
     counts: dict[str, int] = {}
