@@ -5,7 +5,12 @@
   A child can wake and succeed in the same step as its parent.
 * An awake event succeeds when its condition holds (for ``hold`` seconds in a row, if given),
   and fails when it has been awake for more than its timeout (2 s by default) without that.
-  Success and failure are final.
+  Success and failure are final. ``negate = true`` only swaps the condition for its negation
+  (:func:`rgmcad.events.make_condition`): the event succeeds once the condition is false.
+* ``negate = "always"`` (:attr:`~rgmcad.eventspec.Negation.ALWAYS`) turns this around: the
+  condition must never hold (for ``hold`` seconds in a row) while the event is awake. The
+  event fails at the step it does, and succeeds, waking its children, at the first step more
+  than its timeout after it woke. Its condition is the plain, un-negated one.
 * The graph is *resolved* when no event is awake: nothing can change any more. The
   simulation stops there. The outcome is a success when every leaf event (one with no
   children) succeeded. With all-joins this means every event succeeded; with an any-join, a
@@ -19,6 +24,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Mapping
 
+from rgmcad.eventspec import Negation
 from rgmcad.scenario import EventSpec
 
 ASLEEP, AWAKE, SUCCESS, FAILURE = "asleep", "awake", "success", "failure"
@@ -44,6 +50,9 @@ class CausalGraph:
                 self.children[parent].append(name)
         self.timeouts = {n: (s.timeout if s.timeout is not None else default_timeout)
                          for n, s in events.items()}
+        self.holds = {n: s.hold for n, s in events.items()}
+        # events whose condition must never hold: holding fails them, the timeout succeeds
+        self.never = {n for n, s in events.items() if s.negate is Negation.ALWAYS}
         self.state = dict.fromkeys(events, ASLEEP)
         self.time: dict[str, float | None] = dict.fromkeys(events)  # of success or failure
         self.woke: dict[str, float] = {}
@@ -75,18 +84,26 @@ class CausalGraph:
 
     def _evaluate(self, name: str, t: float) -> None:
         if self.conditions[name]():
-            hold = self.specs[name].hold
             since = self._true_since.setdefault(name, t)
-            if t - since >= hold:
-                self._finish(name, SUCCESS, t)
-                for child in self.children[name]:
-                    if self.state[child] == ASLEEP and self._ready(child):
-                        self._wake(child, t)
+            if t - since >= self.holds[name]:
+                if name in self.never:
+                    self._finish(name, FAILURE, t)
+                else:
+                    self._succeed(name, t)
                 return
         else:
             self._true_since.pop(name, None)
         if t - self.woke[name] > self.timeouts[name]:
-            self._finish(name, FAILURE, t)
+            if name in self.never:
+                self._succeed(name, t)
+            else:
+                self._finish(name, FAILURE, t)
+
+    def _succeed(self, name: str, t: float) -> None:
+        self._finish(name, SUCCESS, t)
+        for child in self.children[name]:
+            if self.state[child] == ASLEEP and self._ready(child):
+                self._wake(child, t)
 
     def _ready(self, name: str) -> bool:
         parents = [self.state[p] == SUCCESS for p in self.specs[name].after]

@@ -185,9 +185,10 @@ def cmd_check(args) -> int:
     _print_table([(i, f.name, f"[{f.low:g}, {f.high:g}]", f.unit)
                   for i, f in enumerate(scenario.free)], ("#", "parameter", "range", "unit"))
     print(f"\nevents ({len(scenario.events)}):")
-    _print_table([(n, e.type, ", ".join(e.objects.values()),
-                   (" & " if e.join == "all" else " | ").join(e.after) or "(root)")
-                  for n, e in scenario.events.items()], ("event", "type", "objects", "after"))
+    _print_table([_event_row(n, e, scenario.settings.event_timeout)
+                  for n, e in scenario.events.items()],
+                 ("event", "type", "objects", "after", "join", "negate", "hold (s)",
+                  "timeout (s)"))
     parts = _parts(scenario, args)
     print("\nlayouts:")
     from rgmcad.design_space import values_from_mapping, vector_from_values
@@ -201,6 +202,20 @@ def cmd_check(args) -> int:
             f"{o.first}/{o.second} overlap {o.depth * 1000:.2f} mm" for o in validity.overlaps)
         print(f"  {name}: {status}; {inside} the design space")
     return 0
+
+
+def _event_row(name, event, default_timeout: float) -> tuple:
+    """One row of ``check``'s event table: what the event watches, when, and how."""
+    objects = ", ".join(event.objects.values())
+    if event.end is not None:
+        objects += f" (end {event.end})"
+    elif event.point is not None:
+        objects += " (point {:g}, {:g}, {:g})".format(*event.point)
+    timeout = (f"{event.timeout:g}" if event.timeout is not None
+               else f"{default_timeout:g} (default)")  # [simulation] event_timeout
+    return (name, event.type, objects,
+            (" & " if event.join == "all" else " | ").join(event.after) or "(root)",
+            event.join if event.after else "-", event.negate.label, f"{event.hold:g}", timeout)
 
 
 def cmd_render(args) -> int:

@@ -21,6 +21,14 @@ Semantics and where they depart from the paper's code (SPEC.md 2.1):
   mesh. The paper cast rays of a bounding-sphere radius; the hull test is exact for cups and
   boxes, cheap, and has no ray-length tuning.
 * pivoting, falling, rising, stopping: as in the paper (speeds of the body's centre of mass).
+* falling / rising with ``point`` or ``end``: the vertical velocity of that point of the body,
+  ``v_com + omega x (p - p_com)``, so a lever pivoted at its centre of mass (whose centre
+  never moves) "rises" at its +x end. ``end`` is the centre of one face of the body's bounding
+  box in its part frame. pivoting and toppling take no point: the angular velocity and the
+  attitude of a rigid body are the same at every one of its points.
+
+Negation (``EventSpec.negate``): ``true`` negates the condition here; ``"always"`` leaves the
+condition as it is, and the causal graph fails the event when it holds (:mod:`rgmcad.causal`).
 """
 
 from __future__ import annotations
@@ -31,6 +39,7 @@ from collections.abc import Callable
 import numpy as np
 from scipy.spatial import ConvexHull
 
+from rgmcad.eventspec import ENDS, Negation
 from rgmcad.geometry import invert
 from rgmcad.physics import World
 from rgmcad.scenario import EventSpec
@@ -72,14 +81,68 @@ def pivoting(spec: EventSpec, world: World) -> Condition:
     return condition
 
 
+def end_point(built, end: str) -> np.ndarray:
+    """(3,) centre of the ``end`` face ("+x", "-y", ...) of a built body's bounding box, in
+    its part frame."""
+    if end not in ENDS:
+        raise ValueError(f"unknown end {end!r}; allowed: {', '.join(ENDS)}")
+    bbox = np.asarray(built.bbox, float)
+    point = bbox.mean(axis=0)
+    axis = "xyz".index(end[1])
+    point[axis] = bbox[1 if end[0] == "+" else 0, axis]
+    return point
+
+
+def event_point(spec: EventSpec, world: World) -> np.ndarray | None:
+    """The point (3,) of the event's body, in its part frame, that the spec names with
+    ``point`` or ``end``; None for the centre of mass."""
+    if spec.point is not None:
+        return np.asarray(spec.point, float)
+    if spec.end is None:
+        return None
+    body = spec.objects["body"]
+    built = world.scene.bodies[body].built
+    if built is None:
+        raise ValueError(f"event {spec.name!r}: {body!r} is an infinite plane and has no ends")
+    return end_point(built, spec.end)
+
+
+def point_velocity_reader(world: World, body: str, point) -> Callable[[], tuple]:
+    """A function returning the world velocity (vx, vy, vz) m/s of ``point`` (3,), a point
+    fixed in the body's part frame: ``v_com + omega x (p - p_com)``."""
+    velocity = world.velocity_reader(body)
+    where = world.point_reader(body, point)
+    com_in_part = invert(world.handles[body].com_to_part)[:3, 3]
+    com = world.point_reader(body, com_in_part)
+
+    def read():
+        (vx, vy, vz), (wx, wy, wz) = velocity()
+        (px, py, pz), (cx, cy, cz) = where(), com()
+        rx, ry, rz = px - cx, py - cy, pz - cz
+        return (vx + wy * rz - wz * ry, vy + wz * rx - wx * rz, vz + wx * ry - wy * rx)
+
+    return read
+
+
+def _vertical_velocity(spec: EventSpec, world: World) -> Callable[[], float]:
+    """The body's vertical velocity (m/s): of its centre of mass, or of the spec's point."""
+    body = spec.objects["body"]
+    point = event_point(spec, world)
+    if point is None:
+        velocity = world.velocity_reader(body)
+        return lambda: velocity()[0][2]
+    velocity = point_velocity_reader(world, body, point)
+    return lambda: velocity()[2]
+
+
 def falling(spec: EventSpec, world: World) -> Condition:
-    velocity, v = world.velocity_reader(spec.objects["body"]), abs(spec.params["min_linvel"])
-    return lambda: velocity()[0][2] < -v
+    vz, v = _vertical_velocity(spec, world), abs(spec.params["min_linvel"])
+    return lambda: vz() < -v
 
 
 def rising(spec: EventSpec, world: World) -> Condition:
-    velocity, v = world.velocity_reader(spec.objects["body"]), abs(spec.params["min_linvel"])
-    return lambda: velocity()[0][2] > v
+    vz, v = _vertical_velocity(spec, world), abs(spec.params["min_linvel"])
+    return lambda: vz() > v
 
 
 def stopping(spec: EventSpec, world: World) -> Condition:
@@ -171,12 +234,16 @@ EVENTS: dict[str, Callable[[EventSpec, World], Condition]] = {
 
 
 def make_condition(spec: EventSpec, world: World) -> Condition:
-    """The condition of one event, negated when the spec asks for it."""
+    """The condition of one event, negated for ``negate = true``.
+
+    With ``negate = "always"`` it is the plain condition: the causal graph fails the event
+    when it holds and succeeds it at the timeout (:class:`~rgmcad.causal.CausalGraph`).
+    """
     try:
         factory = EVENTS[spec.type]
     except KeyError:
         raise ValueError(f"unknown event type {spec.type!r}; allowed: {', '.join(EVENTS)}") from None
     condition = factory(spec, world)
-    if spec.negate:
+    if spec.negate is Negation.ONCE:
         return lambda: not condition()
     return condition

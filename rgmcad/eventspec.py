@@ -7,6 +7,7 @@ checked against, so a scenario can be validated without building any physics.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from enum import Enum
 
 
 @dataclass(frozen=True)
@@ -15,6 +16,40 @@ class EventType:
     roles: tuple[str, ...]  # keys naming objects
     params: dict[str, float | None]  # threshold name -> default (None: required)
     doc: str
+    takes_point: bool = False  # accepts `point` or `end`: the body point whose motion counts
+
+
+class Negation(Enum):
+    """What ``negate`` asks of an event (see :mod:`rgmcad.causal`).
+
+    * ``OFF`` (``negate = false``): the condition holds (for ``hold`` s) before the timeout.
+    * ``ONCE`` (``negate = true``): the condition is *false* (for ``hold`` s) at some time
+      before the timeout; it may have held before and may hold again after.
+    * ``ALWAYS`` (``negate = "always"``): the condition never holds (for ``hold`` s) from the
+      moment the event wakes until its timeout; the event fails at the first step it does,
+      and succeeds at the timeout.
+    """
+
+    OFF = False
+    ONCE = True
+    ALWAYS = "always"
+
+    def __bool__(self) -> bool:
+        return self is not Negation.OFF
+
+    @property
+    def label(self) -> str:
+        """How a scenario file writes it: false, true or always."""
+        return {Negation.OFF: "false", Negation.ONCE: "true"}.get(self, self.value)
+
+
+NEGATE_VALUES = "true, false or \"always\""
+"""The values ``negate`` accepts, as an error message lists them."""
+
+ENDS = ("+x", "-x", "+y", "-y", "+z", "-z")
+"""The values of an event's ``end``: the centre of that face of the body's bounding box."""
+
+POINT_KEYS = ("x", "y", "z")
 
 
 CONTACT_TOLERANCE = 1e-3
@@ -33,9 +68,11 @@ EVENT_TYPES: dict[str, EventType] = {
         EventType("pivoting", ("body",), {"min_angvel": 0.0},
                   "the body turns faster than min_angvel rad/s"),
         EventType("falling", ("body",), {"min_linvel": 0.0},
-                  "the body moves down faster than min_linvel m/s"),
+                  "the body (its centre of mass, or its `point` / `end`) moves down faster "
+                  "than min_linvel m/s", takes_point=True),
         EventType("rising", ("body",), {"min_linvel": 0.0},
-                  "the body moves up faster than min_linvel m/s"),
+                  "the body (its centre of mass, or its `point` / `end`) moves up faster "
+                  "than min_linvel m/s", takes_point=True),
         EventType("stopping", ("body",), {"max_linvel": 1e-3, "max_angvel": 1.0},
                   "the body moves slower than max_linvel m/s and turns slower than max_angvel rad/s"),
         EventType("not_moving", ("body",), {"position_tolerance": 1e-3, "angle_tolerance": 1.0},

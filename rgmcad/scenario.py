@@ -21,7 +21,7 @@ import numpy as np
 
 from rgmcad import dominoes
 from rgmcad.errors import ScenarioError
-from rgmcad.eventspec import EVENT_TYPES
+from rgmcad.eventspec import ENDS, EVENT_TYPES, NEGATE_VALUES, POINT_KEYS, Negation
 from rgmcad.geometry import ANGLE_KEYS, POSE_KEYS
 from rgmcad.partlib import MAIN, Family, load_families
 
@@ -105,7 +105,13 @@ class Joint:
 
 @dataclass(frozen=True)
 class EventSpec:
-    """One node of the causal graph."""
+    """One node of the causal graph.
+
+    ``negate`` is a :class:`~rgmcad.eventspec.Negation` (a bool is read as OFF / ONCE).
+    ``point`` or ``end`` (events whose type ``takes_point``; at most one) name the point of the
+    body whose motion counts: coordinates in the body's part frame, or the centre of one face
+    of its bounding box (one of :data:`~rgmcad.eventspec.ENDS`). Neither: the centre of mass.
+    """
 
     name: str
     type: str
@@ -113,10 +119,16 @@ class EventSpec:
     params: dict[str, float]
     after: tuple[str, ...] = ()
     join: str = "all"  # "all" | "any"
-    negate: bool = False
+    negate: Negation = Negation.OFF
     hold: float = 0.0  # s the condition must hold before success
     timeout: float | None = None  # s after waking; None = the scenario's event_timeout
     description: str = ""
+    point: tuple[float, float, float] | None = None  # m, in the body's part frame
+    end: str | None = None  # "+x" | "-x" | "+y" | "-y" | "+z" | "-z"
+
+    def __post_init__(self):
+        if not isinstance(self.negate, Negation):
+            object.__setattr__(self, "negate", Negation(bool(self.negate)))
 
 
 @dataclass(frozen=True)
@@ -199,6 +211,7 @@ TOP_KEYS = ("name", "description", "parts", "simulation", "objects", "runs", "jo
 OBJECT_KEYS = ("part", "params", "parent", "pose", "free", "note", *PHYSICAL_KEYS)
 RUN_KEYS = ("domino", "path", "tilt", "parent", "pose", "free", "note", *PHYSICAL_KEYS)
 EVENT_COMMON_KEYS = ("type", "after", "join", "negate", "hold", "timeout", "description")
+EVENT_POINT_KEYS = ("point", "end")  # events whose type takes_point
 
 
 def load_scenario(path: str | Path, *, parts_dir: Path | None = None) -> Scenario:
@@ -272,7 +285,8 @@ def parse_scenario(data: Mapping, *, where: str = "<scenario>", path: Path | Non
 
     _check_parents(objects, where)
     joints = _parse_joints(data.get("joints", []), objects, families, where)
-    events = _parse_events(data.get("events", {}), objects, families, runs, where)
+    events = _parse_events(data.get("events", {}), objects, families, runs, where,
+                           settings)
     layouts = _parse_layouts(data.get("layouts", {}), objects, free, where)
 
     scenario = Scenario(
@@ -464,8 +478,10 @@ def _resolve_body(ref, objects, families, runs, where, key) -> str:
                         "(objects that are parts, run[i] dominoes, or object.axle)")
 
 
-def _parse_events(raw, objects, families, runs, where) -> dict[str, EventSpec]:
+def _parse_events(raw, objects, families, runs, where,
+                  settings: SimulationSettings | None = None) -> dict[str, EventSpec]:
     raw = _expect(raw, dict, where, "events")
+    settings = settings or SimulationSettings()
     events = {}
     for name, ev in raw.items():
         key = f"events.{name}"
@@ -476,7 +492,13 @@ def _parse_events(raw, objects, families, runs, where) -> dict[str, EventSpec]:
             raise ScenarioError(where, f"{key}.type", f"unknown event type {etype!r}; "
                                 f"allowed: {', '.join(EVENT_TYPES)}")
         spec = EVENT_TYPES[etype]
-        _check_keys(ev, (*EVENT_COMMON_KEYS, *spec.roles, *spec.params), where, key)
+        extra = EVENT_POINT_KEYS if spec.takes_point else ()
+        for k in EVENT_POINT_KEYS:
+            if k in ev and not spec.takes_point:
+                takers = ", ".join(t.name for t in EVENT_TYPES.values() if t.takes_point)
+                raise ScenarioError(where, f"{key}.{k}", f"a {etype} event takes no point or "
+                                    f"end (only {takers} do)")
+        _check_keys(ev, (*EVENT_COMMON_KEYS, *spec.roles, *spec.params, *extra), where, key)
         roles = {}
         for role in spec.roles:
             if role not in ev:
@@ -494,15 +516,21 @@ def _parse_events(raw, objects, families, runs, where) -> dict[str, EventSpec]:
         join = ev.get("join", "all")
         if join not in ("all", "any"):
             raise ScenarioError(where, f"{key}.join", f"unknown join {join!r}; allowed: all, any")
+        negate = _parse_negate(ev.get("negate", False), where, f"{key}.negate")
         timeout = ev.get("timeout")
         if timeout is not None:
             timeout = float(_expect(timeout, (int, float), where, f"{key}.timeout"))
+            if timeout <= 0:
+                raise ScenarioError(where, f"{key}.timeout", f"must be > 0, got {timeout:g}")
+        hold = _parse_hold(ev.get("hold", 0.0), timeout, settings, where, key)
+        if negate is Negation.ALWAYS:
+            _check_always_fits(timeout, settings, where, key)
+        point, end = _parse_point(ev, roles, objects, families, where, key)
         events[name] = EventSpec(
             name=name, type=etype, objects=roles, params=params, after=tuple(after), join=join,
-            negate=_expect(ev.get("negate", False), bool, where, f"{key}.negate"),
-            hold=float(_expect(ev.get("hold", 0.0), (int, float), where, f"{key}.hold")),
-            timeout=timeout,
+            negate=negate, hold=hold, timeout=timeout,
             description=_expect(ev.get("description", ""), str, where, f"{key}.description"),
+            point=point, end=end,
         )
     for name, ev in events.items():
         for parent in ev.after:
@@ -523,6 +551,69 @@ def _parse_events(raw, objects, families, runs, where) -> dict[str, EventSpec]:
             raise ScenarioError(where, "events", "the causal graph needs exactly one root event "
                                 f"(one without `after`); found {len(roots)}: {', '.join(roots)}")
     return events
+
+
+def _parse_negate(value, where, key) -> Negation:
+    if isinstance(value, bool):
+        return Negation(value)
+    if value == Negation.ALWAYS.value:
+        return Negation.ALWAYS
+    raise ScenarioError(where, key, f"expected {NEGATE_VALUES}, got {value!r}")
+
+
+def _parse_hold(value, timeout, settings, where, key) -> float:
+    """``hold`` (s): at least 0 and shorter than the event's timeout, or it can never succeed."""
+    hold = float(_expect(value, (int, float), where, f"{key}.hold"))
+    limit = timeout if timeout is not None else settings.event_timeout
+    if not 0 <= hold < limit:
+        source = ("its `timeout`" if timeout is not None
+                  else "the scenario's [simulation] event_timeout")
+        raise ScenarioError(where, f"{key}.hold", f"got {hold:g} s; allowed: 0 <= hold < "
+                            f"{limit:g} s, the event's timeout ({source}): a longer hold "
+                            "cannot be met before the event times out")
+    return hold
+
+
+def _check_always_fits(timeout, settings, where, key) -> None:
+    """A ``negate = "always"`` event succeeds only at its timeout, so that must fit the run."""
+    limit = timeout if timeout is not None else settings.event_timeout
+    if limit >= settings.duration:
+        name = "timeout" if timeout is not None else "negate"
+        raise ScenarioError(where, f"{key}.{name}", f"a negate = \"always\" event succeeds at its "
+                            f"timeout ({limit:g} s after it wakes), which must be shorter than "
+                            f"the simulation's duration ({settings.duration:g} s)")
+
+
+def _parse_point(ev, roles, objects, families, where, key):
+    """(point, end) of an event: at most one given; ``point`` fills missing x, y, z with 0."""
+    if "point" in ev and "end" in ev:
+        raise ScenarioError(where, f"{key}.point", "give point or end, not both")
+    if "end" in ev:
+        end = ev["end"]
+        if end not in ENDS:
+            raise ScenarioError(where, f"{key}.end", f"unknown end {end!r}; allowed: "
+                                + ", ".join(f'"{e}"' for e in ENDS))
+        for body in roles.values():
+            obj_name, sub = body_key(body)
+            obj = objects[obj_name]
+            if sub == MAIN and families[obj.part].infinite:
+                raise ScenarioError(where, f"{key}.end", f"{body!r} is an infinite plane: it "
+                                    "has no ends; use point = { x = ..., y = ..., z = ... }")
+        return None, end
+    if "point" in ev:
+        raw = ev["point"]
+        what = "a table { x = ..., y = ..., z = ... } (metres, in the body's part frame)"
+        if not isinstance(raw, dict):
+            raise ScenarioError(where, f"{key}.point", f"expected {what}, got {raw!r}")
+        for k, v in raw.items():
+            if k not in POINT_KEYS:
+                raise ScenarioError(where, f"{key}.point.{k}",
+                                    f"unknown key; allowed: {', '.join(POINT_KEYS)}")
+            if isinstance(v, bool) or not isinstance(v, int | float) or not np.isfinite(v):
+                raise ScenarioError(where, f"{key}.point.{k}",
+                                    f"expected a number (metres), got {v!r}")
+        return tuple(float(raw.get(k, 0.0)) for k in POINT_KEYS), None
+    return None, None
 
 
 def _parse_layouts(raw, objects, free, where) -> dict[str, dict[str, float]]:

@@ -1,20 +1,28 @@
 """Causal-graph semantics with scripted conditions: joins, timeouts, resolution."""
 
 from rgmcad.causal import ASLEEP, AWAKE, FAILURE, SUCCESS, CausalGraph
+from rgmcad.eventspec import Negation
 from rgmcad.scenario import EventSpec
 
 DT = 0.002
 
 
-def spec(name, after=(), join="all", hold=0.0, timeout=None):
-    return EventSpec(name, "contact", {}, {}, tuple(after), join, False, hold, timeout)
+def spec(name, after=(), join="all", hold=0.0, timeout=None, negate=False):
+    return EventSpec(name, "contact", {}, {}, tuple(after), join, negate, hold, timeout)
 
 
 def run(specs, true_from, duration=5.0, timeout=2.0):
-    """Event ``n`` becomes true from time ``true_from[n]`` (never if absent)."""
+    """Event ``n`` is true from time ``true_from[n]`` (never if absent), or, given a pair
+    ``(start, end)``, from start until before end."""
     clock = {"t": 0.0}
-    conditions = {s.name: (lambda n=s.name: clock["t"] >= true_from.get(n, float("inf")))
-                  for s in specs}
+
+    def condition(n):
+        start, end = true_from.get(n, float("inf")), float("inf")
+        if isinstance(start, tuple):
+            start, end = start
+        return lambda: start <= clock["t"] < end
+
+    conditions = {s.name: condition(s.name) for s in specs}
     graph = CausalGraph({s.name: s for s in specs}, conditions, timeout)
     i = 0
     while i * DT <= duration:
@@ -70,3 +78,46 @@ def test_hold_requires_the_condition_for_a_duration():
 def test_unresolved_graph_is_not_a_success():
     graph, _ = run([spec("a", timeout=10.0)], {}, duration=1.0)
     assert graph.state["a"] == AWAKE and not graph.resolved
+
+
+def test_a_bool_negate_reads_as_off_or_once():
+    assert spec("a").negate is Negation.OFF and not spec("a").negate
+    assert spec("a", negate=True).negate is Negation.ONCE
+
+
+def test_negate_true_is_left_to_the_condition():
+    # events.make_condition negates it; the graph treats it as any event
+    graph, _ = run([spec("a", negate=True)], {"a": 0.3})
+    assert graph.state["a"] == SUCCESS and abs(graph.time["a"] - 0.3) < DT
+
+
+def test_always_succeeds_at_its_timeout_and_wakes_its_children_then():
+    specs = [spec("r"), spec("quiet", ["r"], negate=Negation.ALWAYS, timeout=1.0),
+             spec("next", ["quiet"])]
+    graph, t = run(specs, {"r": 0.2, "next": 0.0})
+    assert graph.state == {"r": SUCCESS, "quiet": SUCCESS, "next": SUCCESS}
+    assert 1.2 < graph.time["quiet"] <= 1.2 + 2 * DT
+    assert graph.time["next"] == graph.time["quiet"] == t
+    assert graph.succeeded()
+
+
+def test_always_fails_at_the_first_step_its_condition_holds():
+    specs = [spec("r"), spec("quiet", ["r"], negate=Negation.ALWAYS, timeout=1.0),
+             spec("next", ["quiet"])]
+    graph, t = run(specs, {"r": 0.2, "quiet": 0.5, "next": 0.0})
+    assert graph.state == {"r": SUCCESS, "quiet": FAILURE, "next": ASLEEP}
+    assert abs(graph.time["quiet"] - 0.5) < DT and t == graph.time["quiet"]
+    assert not graph.succeeded() and graph.resolved
+
+
+def test_always_fails_when_its_condition_holds_as_it_wakes():
+    graph, _ = run([spec("a", negate=Negation.ALWAYS)], {"a": 0.0})
+    assert graph.state["a"] == FAILURE and graph.time["a"] == 0.0
+
+
+def test_always_with_hold_ignores_shorter_blips():
+    quiet = [spec("a", negate=Negation.ALWAYS, hold=0.2, timeout=1.0)]
+    graph, _ = run(quiet, {"a": (0.3, 0.4)})  # true for 0.1 s: not a violation
+    assert graph.state["a"] == SUCCESS and graph.time["a"] > 1.0
+    graph, _ = run(quiet, {"a": (0.3, 0.8)})  # true for 0.5 s: fails once it lasted 0.2 s
+    assert graph.state["a"] == FAILURE and abs(graph.time["a"] - 0.5) < 2 * DT

@@ -106,3 +106,91 @@ def test_render_and_video(tmp_path):
     pixels = np.asarray(image).reshape(-1, len(image.getbands()))
     assert image.size == (160, 120) and len(np.unique(pixels, axis=0)) > 10
     assert Image.open(gif).n_frames > 5
+
+
+# --- events: negate, hold, join, timeout, point / end ----------------------------------------
+
+def _event(text):
+    """simple.toml with one more event after the root (and event_timeout 1.5 s)."""
+    return (GOOD.replace("duration = 3.0", "duration = 3.0\nevent_timeout = 1.5")
+            + "\n[events.extra]\nafter = [\"ball_rolls_on_track\"]\n" + text)
+
+
+def _rows(out):
+    """check's event table: {event name: its cells}."""
+    table = out.split("\nevents (")[1].split("\n\n")[0].splitlines()[1:]
+    header = table[0]
+    starts = [header.index(h) for h in ("event", "type", "objects", "after", "join", "negate",
+                                        "hold (s)", "timeout (s)")]
+    return {row.split()[0]: [row[a:b].strip() for a, b in zip(starts, [*starts[1:], None],
+                                                               strict=True)]
+            for row in table[1:]}
+
+
+def test_check_shows_negate_hold_join_and_timeout_of_every_event(tmp_path, capsys):
+    text = _event('type = "rising"\nbody = "ball"\nend = "+z"\nnegate = "always"\n'
+                  "timeout = 0.5\nhold = 0.1\n")
+    text = text.replace('type = "stopping"', 'type = "stopping"\nnegate = true\nhold = 0.25')
+    text = text.replace('after = ["last_dom_topples"]',
+                        'after = ["last_dom_topples", "extra"]\njoin = "any"')
+    assert main(["check", _write(tmp_path, text)]) == 0
+    rows = _rows(capsys.readouterr().out)
+    assert rows["extra"] == ["extra", "rising", "ball (end +z)", "ball_rolls_on_track", "all",
+                             "always", "0.1", "0.5"]
+    assert rows["last_dom_stops"][3:] == ["last_dom_topples | extra", "any", "true", "0.25",
+                                          "1.5 (default)"]
+    assert rows["ball_rolls_on_track"][3:] == ["(root)", "-", "false", "0", "1.5 (default)"]
+
+
+def test_check_shows_a_point_given_by_coordinates(tmp_path, capsys):
+    text = _event('type = "falling"\nbody = "ball"\npoint = { x = 0.01, z = -0.005 }\n')
+    assert main(["check", _write(tmp_path, text)]) == 0
+    assert _rows(capsys.readouterr().out)["extra"][2] == "ball (point 0.01, 0, -0.005)"
+
+
+BAD_EVENTS = {  # (scenario text, the key the error names, a word of what is allowed)
+    "hold = timeout": (_event('type = "falling"\nbody = "ball"\ntimeout = 1.0\nhold = 1.0\n'),
+                       "events.extra.hold", "0 <= hold < 1 s, the event's timeout"),
+    "hold > default timeout": (_event('type = "falling"\nbody = "ball"\nhold = 2\n'),
+                               "events.extra.hold", "< 1.5 s, the event's timeout (the scenario's"),
+    "negative hold": (_event('type = "falling"\nbody = "ball"\nhold = -0.1\n'),
+                      "events.extra.hold", "0 <= hold"),
+    "unknown end": (_event('type = "rising"\nbody = "ball"\nend = "top"\n'),
+                    "events.extra.end", '"+x", "-x", "+y", "-y", "+z", "-z"'),
+    "point with an unknown key": (_event('type = "rising"\nbody = "ball"\npoint = { w = 1 }\n'),
+                                  "events.extra.point.w", "allowed: x, y, z"),
+    "point with a string": (_event('type = "rising"\nbody = "ball"\npoint = { x = "1" }\n'),
+                            "events.extra.point.x", "expected a number"),
+    "point is not a table": (_event('type = "rising"\nbody = "ball"\npoint = [0, 0, 1]\n'),
+                             "events.extra.point", "x = ..., y = ..., z = ..."),
+    "point and end": (_event('type = "rising"\nbody = "ball"\nend = "+x"\npoint = { x = 1 }\n'),
+                      "events.extra.point", "point or end, not both"),
+    "end of an event about attitude": (
+        _event('type = "toppling"\nbody = "ball"\nangle = 10\nend = "+x"\n'),
+        "events.extra.end", "takes no point or end (only falling, rising do)"),
+    "end of a plane": (_event('type = "rising"\nbody = "floor"\nend = "+x"\n'),
+                       "events.extra.end", "infinite plane"),
+    "unknown negate": (_event('type = "falling"\nbody = "ball"\nnegate = "never"\n'),
+                       "events.extra.negate", 'true, false or "always"'),
+    "always outlasting the run": (
+        _event('type = "falling"\nbody = "ball"\nnegate = "always"\ntimeout = 3.0\n'),
+        "events.extra.timeout", "shorter than the simulation's duration"),
+}
+
+
+@pytest.mark.parametrize("case", sorted(BAD_EVENTS))
+def test_bad_event_gives_one_line_naming_the_key_and_exit_2(case, tmp_path, capsys):
+    text, key, allowed = BAD_EVENTS[case]
+    path = _write(tmp_path, text)
+    assert main(["check", path]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1
+    assert err.startswith(f"rgmcad: error: {path}: {key}: ") and allowed in err, err
+
+
+def test_bad_event_exit_status_from_the_command_line(tmp_path):
+    path = _write(tmp_path, BAD_EVENTS["hold = timeout"][0])
+    done = subprocess.run([sys.executable, "-m", "rgmcad.cli", "check", path],
+                          capture_output=True, text=True)
+    assert done.returncode == 2 and "events.extra.hold" in done.stderr
+    assert len([line for line in done.stderr.splitlines() if "rgmcad" in line]) == 1

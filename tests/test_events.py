@@ -1,9 +1,11 @@
 """Every event type, in a tiny world where it must succeed and one where it must fail."""
 
+import numpy as np
 import pytest
-from _support import run, tiny
+from _support import run, scene_of, tiny
 
 from rgmcad.eventspec import EVENT_TYPES
+from rgmcad.scene import load_parts
 
 FLOOR = {"part": "plane"}
 BALL = {"part": "ball", "params": {"radius": 0.01}, "mass": 0.01}
@@ -120,3 +122,129 @@ def test_negated_event_succeeds_where_the_event_fails(kind):
     result = run(tiny(objects, {"e": {**event, "negate": True}}, duration=1.0,
                       event_timeout=0.3))
     assert result.outcome.value == "success"
+
+
+# --- a point of the body: rising / falling with `end` or `point` ------------------------------
+
+# A lever pivoted at its centre of mass (its centre never moves); a ball lands on its -x end
+# at about 0.134 s, so the +x end rises and the -x end falls.
+SEESAW = {"lever": {"part": "lever", "params": {"length": 0.2, "width": 0.02,
+                                                "thickness": 0.005},
+                    "mass": 0.02, "pose": {"z": 0.2}},
+          "ball": {**BALL, "pose": {"x": -0.08, "z": 0.3}}}
+IMPACT = 0.134
+
+
+def _seesaw(event, timeout=1.0):
+    return run(tiny(SEESAW, {"e": {"body": "lever", "min_linvel": 0.05, **event}},
+                    duration=1.5, event_timeout=timeout))
+
+
+def test_the_end_of_a_lever_pivoted_at_its_centre_rises():
+    result = _seesaw({"type": "rising", "end": "+x"})
+    assert result.outcome.value == "success"
+    assert IMPACT <= result.events[0].time < IMPACT + 0.01
+    result = _seesaw({"type": "falling", "end": "-x"})
+    assert IMPACT <= result.events[0].time < IMPACT + 0.01
+
+
+@pytest.mark.parametrize("kind", ["rising", "falling"])
+def test_the_centre_of_a_lever_pivoted_at_its_centre_neither_rises_nor_falls(kind):
+    assert _seesaw({"type": kind}).outcome.value == "failure"
+
+
+def test_a_point_given_by_coordinates():
+    result = _seesaw({"type": "rising", "point": {"x": 0.09, "z": 0.0025}}, timeout=0.25)
+    assert result.outcome.value == "success"
+    assert IMPACT <= result.events[0].time < IMPACT + 0.01
+    # the -x side goes down after the impact: it does not rise within the timeout
+    result = _seesaw({"type": "rising", "point": {"x": -0.09}}, timeout=0.25)
+    assert result.outcome.value == "failure"
+
+
+def test_end_is_the_centre_of_a_face_of_the_bounding_box():
+    from rgmcad.events import end_point
+
+    scenario = tiny(SEESAW, {"e": {"type": "rising", "body": "lever", "end": "+x"}})
+    built = load_parts(scenario)["lever"].bodies[""]
+    assert np.allclose(end_point(built, "+x"), [0.1, 0, 0], atol=1e-6)
+    assert np.allclose(end_point(built, "-z"), [0, 0, -0.0025], atol=1e-6)
+
+
+def test_point_velocity_is_the_rate_of_change_of_the_point_position():
+    """v_com + omega x (p - p_com), against finite differences, on a hinged lever swinging
+    under gravity (a multibody link) and a slab tipping over (a free base body)."""
+    from rgmcad.events import point_velocity_reader
+    from rgmcad.physics import World
+
+    objects = {
+        "floor": FLOOR,
+        "lever": {"part": "lever", "params": {"length": 0.2, "width": 0.02, "thickness": 0.005,
+                                              "pivot_x": 0.03},
+                  "mass": 0.02, "pose": {"z": 0.2}},
+        "slab": {**BLOCK, "params": {"length": 0.01, "width": 0.05, "height": 0.1},
+                 "mass": 0.05, "pose": {"x": 0.5, "z": 0.06, "roll": 20, "heading": 30}},
+    }
+    scenario = tiny(objects, {"e": {"type": "rising", "body": "lever"}})
+    world = World(scene_of(scenario), scenario.settings)
+    dt = scenario.settings.timestep
+    points = {"lever": (0.1, 0.01, 0.0025), "slab": (0.005, 0.02, 0.05)}
+    readers = {b: (point_velocity_reader(world, b, p), world.point_reader(b, p))
+               for b, p in points.items()}
+    checked = 0
+    for i in range(1, 61):
+        before = {b: (np.array(v()), np.array(p())) for b, (v, p) in readers.items()}
+        world.step()
+        if i % 20:
+            continue
+        for body, (velocity, position) in readers.items():
+            v0, p0 = before[body]
+            v1 = np.array(velocity())
+            moved = (np.array(position()) - p0) / dt
+            # the engine moves the point with about the velocity before or after the step
+            error = min(np.linalg.norm(moved - v0), np.linalg.norm(moved - v1))
+            assert error <= 0.02 * np.linalg.norm(v1) + 1e-3, (body, i, moved, v0, v1)
+            assert np.linalg.norm(v1) > 0.05  # moving: the check means something
+            checked += 1
+    assert checked == 6
+
+
+# --- negate = "always": the condition never holds while the event is awake ------------------
+
+DROP = {"floor": FLOOR, "ball": ball_at(0.2)}  # touches the floor at about 0.197 s
+CONTACT = {"type": "contact", "first": "ball", "second": "floor"}
+
+
+def test_negate_always_succeeds_at_the_timeout_when_the_condition_never_holds():
+    objects = {"floor": {**FLOOR, "pose": {"z": -1}}, "ball": ball_at(0.5)}
+    result = run(tiny(objects, {"e": {**CONTACT, "negate": "always", "timeout": 0.3}},
+                      duration=1.0))
+    assert result.outcome.value == "success"
+    assert 0.3 < result.events[0].time <= 0.3 + 0.002 + 1e-9
+    assert result.sim_time == result.events[0].time  # the run stops there
+
+
+def test_negate_always_fails_at_the_step_the_condition_first_holds():
+    plain = run(tiny(DROP, {"e": CONTACT}, duration=1.0))
+    touched = plain.events[0].time
+    assert plain.outcome.value == "success" and 0.18 < touched < 0.21
+    never = run(tiny(DROP, {"e": {**CONTACT, "negate": "always", "timeout": 0.5}},
+                     duration=1.0))
+    assert never.outcome.value == "failure"
+    assert never.events[0].state == "failure" and never.events[0].time == touched
+
+
+def test_negate_true_still_means_false_at_some_time_within_the_timeout():
+    # the ball touches the floor later, but it does not at t = 0: negate = true succeeds there
+    result = run(tiny(DROP, {"e": {**CONTACT, "negate": True, "timeout": 0.5}}, duration=1.0))
+    assert result.outcome.value == "success" and result.events[0].time == 0.0
+
+
+def test_negate_always_wakes_its_children_at_the_timeout():
+    objects = {"floor": {**FLOOR, "pose": {"z": -1}}, "ball": ball_at(0.5)}
+    events = {"quiet": {**CONTACT, "negate": "always", "timeout": 0.2},
+              "falls": {"type": "falling", "body": "ball", "min_linvel": 0.1,
+                        "after": ["quiet"]}}
+    result = run(tiny(objects, events, duration=1.0))
+    assert result.outcome.value == "success"
+    assert result.events[0].time == result.events[1].time
