@@ -12,6 +12,9 @@ caches). Engine workarounds, all in this module:
 * convex mesh pieces get a 0.1 mm collision margin instead of pybullet's 1 mm, and compound
   bodies take convex pieces from OBJ files because ``createCollisionShapeArray`` accepts no
   raw vertices;
+* ``createCollisionShapeArray`` keeps 16 children and silently drops the rest (bullet3#2185):
+  a body of more pieces gets one OBJ file of several objects per body, which pybullet loads as
+  one convex hull child per object (:func:`_packed`);
 * sleeping is disabled, so slow levers are never frozen;
 * inertia comes from the CAD solid (principal moments and axes), not from the collision
   shape's bounding box.
@@ -22,6 +25,8 @@ Positions and orientations are read as (4, 4) transforms of each body's *part fr
 from __future__ import annotations
 
 import atexit
+import hashlib
+import itertools
 import os
 import shutil
 import tempfile
@@ -30,7 +35,7 @@ from dataclasses import dataclass
 import numpy as np
 import pybullet as pb
 
-from rgmcad.geometry import from_pybullet, invert, to_pybullet
+from rgmcad.geometry import from_pybullet, invert, to_pybullet, transform_points
 from rgmcad.partlib import BoxPiece, ConvexPiece, CylinderPiece, Piece, PlanePiece, SpherePiece
 from rgmcad.scenario import SimulationSettings
 from rgmcad.scene import Scene, SceneBody
@@ -94,29 +99,145 @@ def _principal(inertia: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 class _ObjFiles:
-    """Convex pieces written once per process as OBJ files (pybullet compounds need files)."""
+    """Convex pieces written once per process as OBJ files (pybullet compounds need files).
+
+    A path is never rewritten: pybullet caches file contents by name (``enableFileCaching``).
+    """
 
     def __init__(self):
         self.dir = None
-        self.files: dict[int, tuple[object, str]] = {}
+        self.files: dict[object, tuple[tuple, str]] = {}
 
     def path(self, piece: ConvexPiece) -> str:
-        cached = self.files.get(id(piece))
-        if cached is not None and cached[0] is piece:
+        """A file holding the piece's vertices as given (its frame is the child's frame)."""
+        return self._file(id(piece), (piece,), lambda: [np.asarray(piece.vertices, float)])
+
+    def path_of_hulls(self, hulls: _Hulls) -> str:
+        """A file of one object per piece, each placed at its frame in ``hulls``."""
+        pieces = tuple(p for p, _ in hulls.pieces)
+        if not hulls.baked:  # frames are the pieces' own: the pieces say it all
+            return self._file(tuple(map(id, pieces)), pieces, lambda: _placed(hulls))
+        blocks = _placed(hulls)
+        digest = hashlib.sha256(b"".join(b.tobytes() for b in blocks)).hexdigest()
+        return self._file(digest, (), lambda: blocks)
+
+    def _file(self, key, owners: tuple, objects) -> str:
+        cached = self.files.get(key)
+        if cached is not None and all(a is b for a, b in zip(cached[0], owners, strict=True)):
             return cached[1]
         if self.dir is None:
             self.dir = tempfile.mkdtemp(prefix="rgmcad-pieces-")
             atexit.register(shutil.rmtree, self.dir, True)
         from scipy.spatial import ConvexHull
 
-        verts = np.asarray(piece.vertices, float)
-        hull = ConvexHull(verts)
+        blocks = objects()
         path = os.path.join(self.dir, f"piece{len(self.files)}.obj")
         with open(path, "w") as f:
-            f.write("".join(f"v {x:.17g} {y:.17g} {z:.17g}\n" for x, y, z in verts))
-            f.write("".join(f"f {a + 1} {b + 1} {c + 1}\n" for a, b, c in hull.simplices))
-        self.files[id(piece)] = (piece, path)
+            offset = 0
+            for i, verts in enumerate(blocks):
+                if len(blocks) > 1:
+                    f.write(f"o piece{i}\n")
+                hull = ConvexHull(verts)
+                f.write("".join(f"v {x:.17g} {y:.17g} {z:.17g}\n" for x, y, z in verts))
+                f.write("".join(f"f {a + offset + 1} {b + offset + 1} {c + offset + 1}\n"
+                                for a, b, c in hull.simplices))
+                offset += len(verts)
+        self.files[key] = (owners, path)
         return path
+
+
+@dataclass(frozen=True, eq=False)
+class _Hulls:
+    """Pieces loaded from one OBJ file of one object per piece: a single entry of
+    ``createCollisionShapeArray`` from which pybullet adds one convex hull child per object
+    to the compound, however many. Each piece (convex, or a box as the hull of its corners)
+    comes with its frame in the entry's frame: its own frame (pieces of one scene body), or
+    its frame in the whole body (``baked``: the file then depends on the layout)."""
+
+    pieces: tuple[tuple[ConvexPiece | BoxPiece, np.ndarray], ...]
+    baked: bool = False
+
+
+def _placed(hulls: _Hulls) -> list[np.ndarray]:
+    """(n, 3) vertices of each piece, placed at its frame."""
+    out = []
+    for piece, frame in hulls.pieces:
+        if isinstance(piece, BoxPiece):
+            corners = np.array(list(itertools.product((-0.5, 0.5), repeat=3)))
+            verts = corners * np.asarray(piece.size, float)
+        else:
+            verts = np.asarray(piece.vertices, float)
+        if not np.array_equal(frame, np.eye(4)):  # else as written for one piece, bit for bit
+            verts = transform_points(np.asarray(frame, float), verts)
+        out.append(verts)
+    return out
+
+
+ARRAY_CHILDREN = 16
+"""Children ``createCollisionShapeArray`` keeps; it silently drops the others (bullet3#2185)."""
+
+
+def _packed(pieces: list[tuple[Piece, np.ndarray]]) -> list[tuple[Piece | _Hulls, np.ndarray]]:
+    """At most :data:`ARRAY_CHILDREN` entries standing for more pieces, every piece colliding.
+
+    Each scene body's convex pieces become one :class:`_Hulls` entry (a scene body: the pieces
+    sharing ``frame @ inv(piece.frame)``), so its file does not depend on the layout. Boxes,
+    spheres and cylinders stay exact primitives while they fit. If they do not, boxes join their
+    body's hulls as the hull of their 8 corners (the same solid, but padded outward by a hull's
+    margin like the other hulls); if that is still too many entries (many welded bodies), all
+    hulls and the boxes that must go are baked into one file in the body's frame. Spheres and
+    cylinders have no exact hull: more than fit is an error.
+    """
+    if any(isinstance(piece, PlanePiece) for piece, _ in pieces):
+        raise ValueError("a plane cannot be part of a compound body")
+    # each piece's scene body frame, frame @ inv(piece.frame), for all pieces at once
+    own = np.array([piece.frame for piece, _ in pieces], float)
+    inverse = np.tile(np.eye(4), (len(pieces), 1, 1))
+    inverse[:, :3, :3] = own[:, :3, :3].transpose(0, 2, 1)
+    inverse[:, :3, 3] = -np.einsum("nij,nj->ni", inverse[:, :3, :3], own[:, :3, 3])
+    outers = np.array([frame for _, frame in pieces], float) @ inverse
+    keys = np.round(outers, 12)  # merges frames equal to 1e-12; a body's first piece places it
+    # key -> (the scene body's frame, its hull pieces, its primitives with their frames)
+    bodies: dict[bytes, tuple[np.ndarray, list, list]] = {}
+    for (piece, frame), outer, key in zip(pieces, outers, keys, strict=True):
+        body = bodies.setdefault(key.tobytes(), (outer, [], []))
+        if isinstance(piece, ConvexPiece):
+            body[1].append(piece)
+        else:
+            body[2].append((piece, frame))
+    excess = sum(len(p) + bool(h) for _, h, p in bodies.values()) - ARRAY_CHILDREN
+    # demote boxes where it saves most: bodies that already have hulls, then the most boxes
+    for _, hulls, prims in sorted(bodies.values(), key=lambda b: (
+            not b[1], -sum(isinstance(p, BoxPiece) for p, _ in b[2]))):
+        boxes = [i for i, (p, _) in enumerate(prims) if isinstance(p, BoxPiece)]
+        if excess <= 0 or len(boxes) < (1 if hulls else 2):
+            continue
+        moved = boxes[-min(len(boxes), excess + (0 if hulls else 1)):]
+        excess -= len(moved) - (0 if hulls else 1)
+        hulls.extend(prims[i][0] for i in moved)
+        prims[:] = [e for i, e in enumerate(prims) if i not in moved]
+    if excess <= 0:
+        out: list[tuple[Piece | _Hulls, np.ndarray]] = []
+        for outer, hulls, prims in bodies.values():
+            out.extend(prims)
+            if hulls:
+                out.append((_Hulls(tuple((p, np.asarray(p.frame, float)) for p in hulls)),
+                            outer))
+        return out
+    # one baked file: every hull, and as many boxes as it takes
+    baked = [(p, outer @ np.asarray(p.frame, float)) for outer, hulls, _ in bodies.values()
+             for p in hulls]
+    prims = [e for _, _, p in bodies.values() for e in p]
+    boxes = [i for i, (p, _) in enumerate(prims) if isinstance(p, BoxPiece)]
+    over = len(prims) + 1 - ARRAY_CHILDREN
+    if over > len(boxes):
+        raise ValueError(f"a rigid body of {len(pieces)} collision pieces: pybullet takes "
+                         f"{ARRAY_CHILDREN} per body, and spheres and cylinders need one each "
+                         f"({len(prims) - len(boxes)} here)")
+    moved = boxes[len(boxes) - max(over, 0):]
+    baked.extend(prims[i] for i in moved)
+    return [e for i, e in enumerate(prims) if i not in moved] + [
+        (_Hulls(tuple(baked), baked=True), np.eye(4))]
 
 
 _OBJ = _ObjFiles()
@@ -181,6 +302,8 @@ class World:
                     piece.vertices, float).tolist(), **common)
             if isinstance(piece, PlanePiece):
                 return pb.createCollisionShape(pb.GEOM_PLANE, planeNormal=[0, 0, 1], **common)
+        if len(pieces) > ARRAY_CHILDREN:  # bodies of 16 pieces or fewer are built as they were
+            pieces = _packed(pieces)
         types, radii, halves, lengths, files, positions, orientations = [], [], [], [], [], [], []
         for piece, frame in pieces:
             pos, orn = to_pybullet(frame)
@@ -199,6 +322,9 @@ class World:
             elif isinstance(piece, ConvexPiece):
                 types.append(pb.GEOM_MESH)
                 file = _OBJ.path(piece)
+            elif isinstance(piece, _Hulls):
+                types.append(pb.GEOM_MESH)
+                file = _OBJ.path_of_hulls(piece)
             else:
                 raise ValueError("a plane cannot be part of a compound body")
             radii.append(radius)

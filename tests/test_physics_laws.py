@@ -1,11 +1,14 @@
-"""Physics against closed forms: free fall, rolling down an incline, a domino's tipping angle."""
+"""Physics against closed forms: free fall, rolling down an incline, a domino's tipping angle;
+and a ball thrown into a cup stays in it."""
 
 import math
 
 import numpy as np
+import pybullet as pb
 import pytest
 from _support import scene_of, tiny
 
+from rgmcad.geometry import invert
 from rgmcad.physics import World
 
 G = 9.81
@@ -67,3 +70,32 @@ def test_domino_tips_past_atan_thickness_over_height():
     tipping = math.degrees(math.atan(0.007 / 0.044))  # 9.04 degrees
     assert not _domino_falls(tipping - 0.7)
     assert _domino_falls(tipping + 0.7)
+
+
+GOBLET = {"inner_height": 0.11, "top_radius": 0.036, "bottom_radius": 0.025, "wall": 0.002}
+RIM = GOBLET["inner_height"] + GOBLET["wall"]  # height of the rim in the goblet's frame
+RIM_INNER_RADIUS = 0.034  # about: top_radius - wall / cos(wall's lean)
+
+
+@pytest.mark.parametrize("tilt_deg", [0, 15])
+def test_ball_thrown_into_a_goblet_stays_inside_whichever_wall_it_strikes(tilt_deg):
+    # launched 2 cm above the middle of the rim, 0.3 m/s sideways: it strikes the wall, bounces
+    # (restitution 0.8 x 0.5) and ends up at the bottom; 12 directions cover the whole wall
+    sc = tiny({"goblet": {"part": "goblet", "params": GOBLET, "restitution": 0.5,
+                          "pose": {"pitch": tilt_deg}},
+               "ball": {"part": "ball", "params": {"radius": 0.008}, "mass": 0.0056,
+                        "restitution": 0.8, "parent": "goblet", "pose": {"z": RIM + 0.02}}},
+              {"e": {"type": "inclusion", "inside": "ball", "container": "goblet"}})
+    scene = scene_of(sc)
+    escaped = []
+    for k in range(12):
+        world = World(scene, sc.settings)
+        a = math.radians(30 * k)
+        pb.resetBaseVelocity(world.handles["ball"].uid, [0.3 * math.cos(a), 0.3 * math.sin(a), 0],
+                             physicsClientId=world.cid)
+        for _ in range(500):  # 1 s
+            world.step()
+        x, y, z, _ = invert(world.pose("goblet")) @ world.pose("ball")[:, 3]
+        if not (math.hypot(x, y) < RIM_INNER_RADIUS and GOBLET["wall"] < z < RIM):
+            escaped.append(f"{30 * k} deg: ball at r = {math.hypot(x, y):.3f} m, z = {z:.3f} m")
+    assert not escaped
