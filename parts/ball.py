@@ -6,7 +6,7 @@ Frame: the origin is the centre of the sphere.
 import math
 from dataclasses import dataclass
 
-from rgmcad.partlib import Family, SpherePiece
+from rgmcad.parts.family import Family, SpherePiece
 
 
 @dataclass(frozen=True)

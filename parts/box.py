@@ -7,7 +7,7 @@ thickness as ``length``.
 
 from dataclasses import dataclass
 
-from rgmcad.partlib import BoxPiece, Family
+from rgmcad.parts.family import BoxPiece, Family
 
 
 @dataclass(frozen=True)

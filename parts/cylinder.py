@@ -7,7 +7,7 @@ Z and ``height`` is the full height, so the faces lie at z = -height/2 and z = +
 import math
 from dataclasses import dataclass
 
-from rgmcad.partlib import CylinderPiece, Family
+from rgmcad.parts.family import CylinderPiece, Family
 
 
 @dataclass(frozen=True)

@@ -28,7 +28,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from rgmcad.partlib import ConvexPiece, Family
+from rgmcad.parts.family import ConvexPiece, Family
 
 
 @dataclass(frozen=True)

@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from rgmcad.partlib import BoxPiece, CylinderPiece, Family, Hinge
+from rgmcad.parts.family import BoxPiece, CylinderPiece, Family, Hinge
 
 AXLE_OVERHANG = 0.01
 """Default axle length beyond the plank's width (m): 5 mm either side."""

@@ -7,7 +7,7 @@ no mass and no CAD solid.
 
 from dataclasses import dataclass
 
-from rgmcad.partlib import Family, PlanePiece
+from rgmcad.parts.family import Family, PlanePiece
 
 
 @dataclass(frozen=True)

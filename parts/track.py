@@ -10,7 +10,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from rgmcad.partlib import BoxPiece, Family
+from rgmcad.parts.family import BoxPiece, Family
 
 
 @dataclass(frozen=True)

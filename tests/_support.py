@@ -4,10 +4,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from rgmcad.design_space import values_from_mapping
-from rgmcad.scenario import parse_scenario
-from rgmcad.scene import load_parts, make_scene
-from rgmcad.simulate import simulate
+from rgmcad.scene.bodies import load_parts, make_scene
+from rgmcad.scene.design_space import values_from_mapping
+from rgmcad.scene.scenario import parse_scenario
+from rgmcad.sim.run import simulate
 
 
 def tiny(objects: dict, events: dict, *, runs=None, joints=None, duration=2.0, **sim):

@@ -13,9 +13,9 @@ import numpy as np
 import pytest
 import trimesh
 
-from rgmcad import build
 from rgmcad.errors import ScenarioError
-from rgmcad.partlib import ConvexPiece, Family, load_families
+from rgmcad.parts import build
+from rgmcad.parts.family import ConvexPiece, Family, load_families
 
 FAMILIES = load_families()
 
@@ -197,8 +197,8 @@ def test_load_part_does_not_import_cadquery(out):
     code = textwrap.dedent(f"""
         import sys, time
         from pathlib import Path
-        from rgmcad.build import load_part
-        from rgmcad.partlib import load_families
+        from rgmcad.parts.build import load_part
+        from rgmcad.parts.family import load_families
         families = load_families()
         for name, values in {families!r}:
             part = load_part(families[name], values, Path({str(out)!r}), build_missing=False)

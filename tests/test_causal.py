@@ -1,8 +1,8 @@
 """Causal-graph semantics with scripted conditions: joins, timeouts, resolution."""
 
-from rgmcad.causal import ASLEEP, AWAKE, FAILURE, SUCCESS, CausalGraph
-from rgmcad.eventspec import Negation
-from rgmcad.scenario import EventSpec
+from rgmcad.scene.eventspec import Negation
+from rgmcad.scene.scenario import EventSpec
+from rgmcad.sim.causal import ASLEEP, AWAKE, FAILURE, SUCCESS, CausalGraph
 
 DT = 0.002
 

@@ -11,8 +11,8 @@ import pytest
 from PIL import Image
 
 from rgmcad.cli import main, resolve_layout
-from rgmcad.scenario import load_scenario
-from rgmcad.scene import load_parts, make_scene
+from rgmcad.scene.bodies import load_parts, make_scene
+from rgmcad.scene.scenario import load_scenario
 
 DPI = 300
 KEYS = {"pdf", "svg", "plane", "paper", "orientation", "sheets", "parts"}

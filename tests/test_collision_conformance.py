@@ -30,7 +30,7 @@ from _support import scene_of, tiny
 from scipy.spatial import ConvexHull
 
 from rgmcad.geometry import invert
-from rgmcad.partlib import (
+from rgmcad.parts.family import (
     BoxPiece,
     ConvexPiece,
     CylinderPiece,
@@ -39,9 +39,9 @@ from rgmcad.partlib import (
     load_families,
     params_dict,
 )
-from rgmcad.physics import World
-from rgmcad.scenario import load_scenario
-from rgmcad.scene import Scene
+from rgmcad.scene.bodies import Scene
+from rgmcad.scene.scenario import load_scenario
+from rgmcad.sim.world import World
 
 FAMILIES = load_families()
 SCENARIOS = sorted((Path(__file__).parent.parent / "scenarios").glob("*.toml"))

@@ -5,9 +5,9 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
-from rgmcad.design_space import local_poses, values_from_vector, vector_from_values, world_poses
 from rgmcad.geometry import pose6_of, pose_matrix
-from rgmcad.scenario import load_scenario
+from rgmcad.scene.design_space import local_poses, values_from_vector, vector_from_values, world_poses
+from rgmcad.scene.scenario import load_scenario
 
 BALLRUN = load_scenario("scenarios/ballrun.toml")
 

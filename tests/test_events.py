@@ -4,8 +4,8 @@ import numpy as np
 import pytest
 from _support import run, scene_of, tiny
 
-from rgmcad.eventspec import EVENT_TYPES
-from rgmcad.scene import load_parts
+from rgmcad.scene.bodies import load_parts
+from rgmcad.scene.eventspec import EVENT_TYPES
 
 FLOOR = {"part": "plane"}
 BALL = {"part": "ball", "params": {"radius": 0.01}, "mass": 0.01}
@@ -163,7 +163,7 @@ def test_a_point_given_by_coordinates():
 
 
 def test_end_is_the_centre_of_a_face_of_the_bounding_box():
-    from rgmcad.events import end_point
+    from rgmcad.sim.events import end_point
 
     scenario = tiny(SEESAW, {"e": {"type": "rising", "body": "lever", "end": "+x"}})
     built = load_parts(scenario)["lever"].bodies[""]
@@ -174,8 +174,8 @@ def test_end_is_the_centre_of_a_face_of_the_bounding_box():
 def test_point_velocity_is_the_rate_of_change_of_the_point_position():
     """v_com + omega x (p - p_com), against finite differences, on a hinged lever swinging
     under gravity (a multibody link) and a slab tipping over (a free base body)."""
-    from rgmcad.events import point_velocity_reader
-    from rgmcad.physics import World
+    from rgmcad.sim.events import point_velocity_reader
+    from rgmcad.sim.world import World
 
     objects = {
         "floor": FLOOR,

@@ -193,9 +193,9 @@ def test_grid_search_kernel_in_numpy_scores_as_libsvm_kernel(monkeypatch):
 
 
 def test_jobs_lent_to_a_process_pool_give_the_serial_result():
-    from rgmcad.executor import PoolExecutor
     from rgmcad.learning.factorize import select_dimensions
     from rgmcad.learning.parallel import jobs_on
+    from rgmcad.runs.executor import PoolExecutor
 
     oracle = disc_oracle(softness=0.05, seed=5)
     X = np.random.default_rng(5).random((300, 3))

@@ -10,13 +10,13 @@ import shutil
 import numpy as np
 import pytest
 
-import rgmcad.cli_optimize
+import rgmcad.cli.optimize
 from rgmcad.cli import main
 from rgmcad.errors import ScenarioError
-from rgmcad.evaluate import EPS_GRID, ball_samples, wilson_interval
 from rgmcad.learning import LearningSettings
-from rgmcad.problem import ScenarioProblem, SimRecord
-from rgmcad.runstore import SIMULATIONS, RunStore, run_identity
+from rgmcad.runs.problem import ScenarioProblem, SimRecord
+from rgmcad.runs.robustness import EPS_GRID, ball_samples, wilson_interval
+from rgmcad.runs.store import SIMULATIONS, RunStore, run_identity
 
 SIMPLE = "scenarios/simple.toml"
 
@@ -39,7 +39,7 @@ def _run(argv) -> tuple[int, dict | None]:
 @pytest.fixture(scope="module")
 def tiny_budget():
     with pytest.MonkeyPatch.context() as mp:
-        mp.setattr(rgmcad.cli_optimize, "budget", lambda name: TINY)
+        mp.setattr(rgmcad.cli.optimize, "budget", lambda name: TINY)
         yield
 
 
@@ -113,7 +113,7 @@ def test_a_run_directory_made_with_other_settings_is_refused(reference, change, 
     argv = ["optimize", SIMPLE, "--run", str(run), "--seed", "3", "--budget", "small"]
     argv[argv.index(change[0]) + 1] = change[1]
     with pytest.MonkeyPatch.context() as mp:  # "default" must differ from the tiny budget
-        mp.setattr(rgmcad.cli_optimize, "budget",
+        mp.setattr(rgmcad.cli.optimize, "budget",
                    lambda name: TINY if name == "small" else LearningSettings())
         assert main(argv) == 2
     err = capsys.readouterr().err.strip()
@@ -218,7 +218,7 @@ class _Plane:
 
 
 def test_batches_in_flight_are_stored_in_order_and_validity_is_tested_here_meanwhile(tmp_path):
-    from rgmcad.runstore import RecordedProblem
+    from rgmcad.runs.store import RecordedProblem
 
     pool = _LoggingPool()
     with RunStore(tmp_path, run_identity("s", "0" * 64, 0, TINY)) as store:
@@ -282,7 +282,7 @@ def test_a_simulation_does_not_depend_on_what_the_process_simulated_before():
     import sys
 
     code = ("import json, sys, numpy as np\n"
-            "from rgmcad.problem import ScenarioProblem\n"
+            "from rgmcad.runs.problem import ScenarioProblem\n"
             "p = ScenarioProblem('scenarios/ballrun.toml')\n"
             "out = [p.simulate_one(np.array(v)).events for v in json.loads(sys.argv[1])][-1]\n"
             "print(json.dumps(out))\n")

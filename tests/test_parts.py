@@ -17,10 +17,10 @@ import pytest
 import trimesh
 from scipy.spatial import ConvexHull
 
-from rgmcad import build
 from rgmcad.errors import ScenarioError
 from rgmcad.geometry import pose_matrix
-from rgmcad.partlib import (
+from rgmcad.parts import build
+from rgmcad.parts.family import (
     MAIN,
     BoxPiece,
     ConvexPiece,
@@ -146,7 +146,7 @@ def test_family_declares_its_contract(name):
 def test_family_modules_do_not_import_cadquery():
     code = textwrap.dedent("""
         import sys
-        from rgmcad.partlib import load_families
+        from rgmcad.parts.family import load_families
         families = load_families()
         for f in families.values():
             mod = sys.modules[f.params.__module__]

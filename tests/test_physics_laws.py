@@ -9,7 +9,7 @@ import pytest
 from _support import scene_of, tiny
 
 from rgmcad.geometry import invert
-from rgmcad.physics import World
+from rgmcad.sim.world import World
 
 G = 9.81
 NEVER = {"e": {"type": "contact", "first": "ball", "second": "floor"}}

@@ -10,8 +10,8 @@ import trimesh
 from PIL import Image
 
 from rgmcad.errors import ScenarioError
-from rgmcad.printcheck import verify_print
-from rgmcad.template import BasePlane, PlacedPart, make_template
+from rgmcad.printing.check import verify_print
+from rgmcad.printing.template import BasePlane, PlacedPart, make_template
 
 DPI = 300
 

@@ -14,7 +14,7 @@ import trimesh
 from shapely.affinity import rotate, translate
 from shapely.geometry import Point, Polygon
 
-from rgmcad.template import (
+from rgmcad.printing.template import (
     BasePlane,
     PlacedPart,
     grid_size,

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from _support import scene_of, tiny
 
-from rgmcad.validity import check_validity
+from rgmcad.sim.validity import check_validity
 
 E = {"e": {"type": "contact", "first": "a", "second": "b"}}
 CUBE = {"part": "box", "params": {"length": 0.02, "width": 0.02, "height": 0.02}}
@@ -66,7 +66,7 @@ def test_fifty_bodies_in_under_twenty_milliseconds():
 
 @pytest.mark.parametrize("sink", [0.0, 5e-4, 2e-3])
 def test_ball_shortcut_agrees_with_the_mesh_intersection(sink):
-    from rgmcad import validity
+    from rgmcad.sim import validity
 
     r = 0.01
     sc = tiny({"a": {"part": "ball", "params": {"radius": r}, "mass": 0.01,
@@ -89,10 +89,10 @@ def test_ball_shortcut_agrees_with_the_mesh_intersection(sink):
 def test_many_layouts_at_once_give_the_answers_of_one_scene_at_a_time(name):
     from scipy.stats import qmc
 
-    from rgmcad.design_space import bounds, world_poses, world_poses_many
-    from rgmcad.problem import ScenarioProblem
-    from rgmcad.scene import make_scene
-    from rgmcad.validity import LayoutValidity
+    from rgmcad.runs.problem import ScenarioProblem
+    from rgmcad.scene.bodies import make_scene
+    from rgmcad.scene.design_space import bounds, world_poses, world_poses_many
+    from rgmcad.sim.validity import LayoutValidity
 
     problem = ScenarioProblem(f"scenarios/{name}.toml")
     scenario, parts = problem.scenario, problem.parts
@@ -111,8 +111,8 @@ def test_a_point_deep_in_two_box_bodies_means_the_meshes_penetrate():
     """The shortcut that decides box-made pairs without manifold3d: whenever it finds a point
     at least tolerance / 2 deep in both bodies, the exact test finds a penetration; and it
     finds one for every crossing deeper than 2 mm."""
-    from rgmcad import validity
     from rgmcad.geometry import pose_matrices
+    from rgmcad.sim import validity
 
     sc = tiny({"a": {**CUBE, "params": {"length": 0.2, "width": 0.03, "height": 0.004}},
                "b": {"part": "track", "params": {"length": 0.1, "width": 0.06, "height": 0.02,

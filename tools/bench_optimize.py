@@ -26,11 +26,11 @@ from pathlib import Path
 import numpy as np
 from scipy.stats import qmc
 
-import rgmcad.runstore
-from rgmcad.build import DEFAULT_BUILD_DIR
+import rgmcad.runs.store
 from rgmcad.cli import main as cli_main
-from rgmcad.executor import PoolExecutor, SerialExecutor, default_workers
-from rgmcad.problem import ScenarioProblem, context
+from rgmcad.parts.build import DEFAULT_BUILD_DIR
+from rgmcad.runs.executor import PoolExecutor, SerialExecutor, default_workers
+from rgmcad.runs.problem import ScenarioProblem, context
 
 TIMES = {"simulation": 0.0, "validity": 0.0, "penetration": 0.0}
 
@@ -67,16 +67,16 @@ def _timed_wait(method):
     return wrapper
 
 
-class TimedProblem(rgmcad.runstore.RecordedProblem):
+class TimedProblem(rgmcad.runs.store.RecordedProblem):
     """RecordedProblem that adds up the time spent in each kind of call."""
 
-    submit_records = _timed_wait(rgmcad.runstore.RecordedProblem.submit_records)
-    validity = _timed("validity", rgmcad.runstore.RecordedProblem.validity)
-    penetration = _timed("penetration", rgmcad.runstore.RecordedProblem.penetration)
+    submit_records = _timed_wait(rgmcad.runs.store.RecordedProblem.submit_records)
+    validity = _timed("validity", rgmcad.runs.store.RecordedProblem.validity)
+    penetration = _timed("penetration", rgmcad.runs.store.RecordedProblem.penetration)
 
 
 def overhead(args) -> None:
-    rgmcad.runstore.RecordedProblem = TimedProblem  # cmd_optimize looks it up at call time
+    rgmcad.runs.store.RecordedProblem = TimedProblem  # cmd_optimize looks it up at call time
     with tempfile.TemporaryDirectory() as tmp:
         run = Path(tmp) / "run"
         argv = ["optimize", args.scenario, "--run", str(run), "--seed", str(args.seed),

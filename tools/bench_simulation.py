@@ -16,11 +16,11 @@ from pathlib import Path
 import numpy as np
 from scipy.stats import qmc
 
-from rgmcad.design_space import values_from_mapping, values_from_vector
-from rgmcad.scenario import load_scenario, parse_scenario
-from rgmcad.scene import load_parts, make_scene
-from rgmcad.simulate import simulate
-from rgmcad.validity import check_validity
+from rgmcad.scene.bodies import load_parts, make_scene
+from rgmcad.scene.design_space import values_from_mapping, values_from_vector
+from rgmcad.scene.scenario import load_scenario, parse_scenario
+from rgmcad.sim.run import simulate
+from rgmcad.sim.validity import check_validity
 
 
 def bench_scenario(path: Path, repeat: int, args_valid: int) -> None:

@@ -2,7 +2,7 @@
 information estimates.
 
 By default they run in this process, or in joblib's processes when ``n_jobs`` > 1. Inside
-``with jobs_on(executor):`` they go to that executor (:mod:`rgmcad.executor`) instead.
+``with jobs_on(executor):`` they go to that executor (:mod:`rgmcad.runs.executor`) instead.
 ``rgmcad optimize`` lends the learner its simulation pool this way: the pool is idle while
 the models train, and its workers were forked after scikit-learn was imported. joblib's
 processes cost about 2 s of a BALLRUN run to start, mostly importing scikit-learn again, and
@@ -27,7 +27,7 @@ _EXECUTOR: ContextVar[Any] = ContextVar("rgmcad_learning_executor", default=None
 @contextmanager
 def jobs_on(executor) -> Iterator[None]:
     """Run the learner's parallel jobs on ``executor`` (anything with ``workers`` and
-    ``map(fn, items)``, such as :class:`rgmcad.executor.PoolExecutor`) inside the block."""
+    ``map(fn, items)``, such as :class:`rgmcad.runs.executor.PoolExecutor`) inside the block."""
     token = _EXECUTOR.set(executor)
     try:
         yield

@@ -1,6 +1,6 @@
 """The event types a causal graph can use: their object roles and parameters (pure data).
 
-The conditions themselves live in :mod:`rgmcad.events`; this table is what scenario files are
+The conditions themselves live in :mod:`rgmcad.sim.events`; this table is what scenario files are
 checked against, so a scenario can be validated without building any physics.
 """
 
@@ -20,7 +20,7 @@ class EventType:
 
 
 class Negation(Enum):
-    """What ``negate`` asks of an event (see :mod:`rgmcad.causal`).
+    """What ``negate`` asks of an event (see :mod:`rgmcad.sim.causal`).
 
     * ``OFF`` (``negate = false``): the condition holds (for ``hold`` s) before the timeout.
     * ``ONCE`` (``negate = true``): the condition is *false* (for ``hold`` s) at some time

@@ -1,6 +1,6 @@
-"""Event conditions, evaluated on a running :class:`~rgmcad.physics.World`.
+"""Event conditions, evaluated on a running :class:`~rgmcad.sim.world.World`.
 
-Each factory takes an :class:`~rgmcad.scenario.EventSpec` and a world (at t = 0, where it reads
+Each factory takes an :class:`~rgmcad.scene.scenario.EventSpec` and a world (at t = 0, where it reads
 any initial state it needs) and returns a condition: a function of no arguments, true when the
 event's condition holds now. Conditions run before every physics step while their event is
 awake, so they are closures over pre-resolved handles and use plain floats, not numpy.
@@ -28,7 +28,7 @@ Semantics and where they depart from the paper's code (SPEC.md 2.1):
   attitude of a rigid body are the same at every one of its points.
 
 Negation (``EventSpec.negate``): ``true`` negates the condition here; ``"always"`` leaves the
-condition as it is, and the causal graph fails the event when it holds (:mod:`rgmcad.causal`).
+condition as it is, and the causal graph fails the event when it holds (:mod:`rgmcad.sim.causal`).
 """
 
 from __future__ import annotations
@@ -39,10 +39,10 @@ from collections.abc import Callable
 import numpy as np
 from scipy.spatial import ConvexHull
 
-from rgmcad.eventspec import ENDS, Negation
 from rgmcad.geometry import invert
-from rgmcad.physics import World
-from rgmcad.scenario import EventSpec
+from rgmcad.scene.eventspec import ENDS, Negation
+from rgmcad.scene.scenario import EventSpec
+from rgmcad.sim.world import World
 
 Condition = Callable[[], bool]
 
@@ -237,7 +237,7 @@ def make_condition(spec: EventSpec, world: World) -> Condition:
     """The condition of one event, negated for ``negate = true``.
 
     With ``negate = "always"`` it is the plain condition: the causal graph fails the event
-    when it holds and succeeds it at the timeout (:class:`~rgmcad.causal.CausalGraph`).
+    when it holds and succeeds it at the timeout (:class:`~rgmcad.sim.causal.CausalGraph`).
     """
     try:
         factory = EVENTS[spec.type]

@@ -28,6 +28,7 @@ from pathlib import Path
 import numpy as np
 
 from rgmcad.errors import ScenarioError
+from rgmcad.shipped import shipped_dir
 
 MAIN = ""
 """Key of a part's main body."""
@@ -244,7 +245,7 @@ def params_dict(params) -> dict:
 
 # --- registry ---------------------------------------------------------------------------------
 
-DEFAULT_PARTS_DIR = Path(__file__).resolve().parent.parent / "parts"
+DEFAULT_PARTS_DIR = shipped_dir("parts")
 
 
 def load_families(parts_dir: Path | None = None) -> dict[str, Family]:

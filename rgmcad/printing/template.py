@@ -5,7 +5,7 @@ pinned to, or an axis plane) and drawn at true scale: each part's exact silhouet
 union of its projected mesh triangles), its placement order and name, its height above the
 plane, the tilt the outline cannot show, and its tolerances. The drawing is cut into sheets
 with overlap strips, each sheet carrying its label, a 100 mm scale bar, "print at 100 %" and
-four AprilTag 36h11 marks from which :func:`rgmcad.printcheck.verify_print` recognises the
+four AprilTag 36h11 marks from which :func:`rgmcad.printing.check.verify_print` recognises the
 sheet and measures the printer's scale. The first page holds an assembly map, test squares
 (100 mm and 1 in), the parts list and a legend. The same drawing is written as one SVG at
 1:1 in millimetres.

@@ -19,11 +19,11 @@ from typing import Any
 import networkx as nx
 import numpy as np
 
-from rgmcad import dominoes
 from rgmcad.errors import ScenarioError
-from rgmcad.eventspec import ENDS, EVENT_TYPES, NEGATE_VALUES, POINT_KEYS, Negation
 from rgmcad.geometry import ANGLE_KEYS, POSE_KEYS
-from rgmcad.partlib import MAIN, Family, load_families
+from rgmcad.parts.family import MAIN, Family, load_families
+from rgmcad.scene import dominoes
+from rgmcad.scene.eventspec import ENDS, EVENT_TYPES, NEGATE_VALUES, POINT_KEYS, Negation
 
 FRAME = "frame"
 """Part name of a pure reference frame: it has no body and carries poses for its children."""
@@ -107,10 +107,10 @@ class Joint:
 class EventSpec:
     """One node of the causal graph.
 
-    ``negate`` is a :class:`~rgmcad.eventspec.Negation` (a bool is read as OFF / ONCE).
+    ``negate`` is a :class:`~rgmcad.scene.eventspec.Negation` (a bool is read as OFF / ONCE).
     ``point`` or ``end`` (events whose type ``takes_point``; at most one) name the point of the
     body whose motion counts: coordinates in the body's part frame, or the centre of one face
-    of its bounding box (one of :data:`~rgmcad.eventspec.ENDS`). Neither: the centre of mass.
+    of its bounding box (one of :data:`~rgmcad.scene.eventspec.ENDS`). Neither: the centre of mass.
     """
 
     name: str

@@ -47,7 +47,7 @@ from pathlib import Path
 import numpy as np
 
 from rgmcad.errors import ScenarioError
-from rgmcad.partlib import (
+from rgmcad.parts.family import (
     MAIN,
     ConvexPiece,
     Family,
@@ -154,7 +154,7 @@ class BuiltPart:
     family : str
         Family name.
     params : dict
-        The parameters, JSON-ready (:func:`rgmcad.partlib.params_dict`).
+        The parameters, JSON-ready (:func:`rgmcad.parts.family.params_dict`).
     bodies : dict of str to BuiltBody
         Keyed by body key, main body ``""`` first; empty for an infinite plane.
     joints : tuple of Hinge

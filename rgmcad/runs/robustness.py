@@ -38,7 +38,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from rgmcad.problem import SimRecord
+from rgmcad.runs.problem import SimRecord
 
 __all__ = ["ETA", "EPS_GRID", "RobustnessCurve", "ball_samples", "wilson_interval",
            "local_robustness", "plot_curves"]

@@ -13,7 +13,7 @@ from collections.abc import Mapping
 import numpy as np
 
 from rgmcad.geometry import POSE_KEYS, pose_matrices, pose_matrix
-from rgmcad.scenario import Scenario
+from rgmcad.scene.scenario import Scenario
 
 
 def bounds(scenario: Scenario) -> tuple[np.ndarray, np.ndarray]:

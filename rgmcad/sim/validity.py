@@ -24,10 +24,10 @@ from dataclasses import dataclass
 import manifold3d
 import numpy as np
 
-from rgmcad.build import BuiltBody
 from rgmcad.geometry import invert, transform_points
-from rgmcad.partlib import BoxPiece, CylinderPiece, SpherePiece
-from rgmcad.scene import Scene, SceneBody
+from rgmcad.parts.build import BuiltBody
+from rgmcad.parts.family import BoxPiece, CylinderPiece, SpherePiece
+from rgmcad.scene.bodies import Scene, SceneBody
 
 TOLERANCE = 2e-4
 """Deepest penetration (m) still counted as touching."""
@@ -281,8 +281,8 @@ class LayoutValidity:
     """
 
     def __init__(self, scenario, parts, tolerance: float = TOLERANCE):
-        from rgmcad.design_space import bounds
-        from rgmcad.scene import make_scene
+        from rgmcad.scene.bodies import make_scene
+        from rgmcad.scene.design_space import bounds
 
         low, high = bounds(scenario)
         scene = make_scene(scenario, (low + high) / 2, parts)  # any layout: same bodies
@@ -327,7 +327,7 @@ class LayoutValidity:
 
     def __call__(self, values) -> np.ndarray:
         """(m,) bool for real parameter values (m, d)."""
-        from rgmcad.design_space import world_poses_many
+        from rgmcad.scene.design_space import world_poses_many
 
         values = np.atleast_2d(np.asarray(values, float))
         m, n, tol = len(values), len(self.solids), self.tolerance

@@ -37,8 +37,8 @@ from typing import Any
 import numpy as np
 
 from rgmcad.errors import ScenarioError
-from rgmcad.executor import map_blocks
-from rgmcad.problem import SimRecord
+from rgmcad.runs.executor import map_blocks
+from rgmcad.runs.problem import SimRecord
 
 __all__ = ["RunStore", "RecordedProblem", "run_identity", "SETTINGS", "SIMULATIONS", "RESULT",
            "MODEL"]
@@ -256,7 +256,7 @@ class RecordedProblem:
         Picklable; its ``simulate_one`` and ``validity`` run on the executor.
     store : RunStore
     executor : Executor
-        See :mod:`rgmcad.executor`.
+        See :mod:`rgmcad.runs.executor`.
     on_simulation : callable, optional
         ``on_simulation(record, replayed)`` after every simulation, stored or new.
 

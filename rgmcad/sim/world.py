@@ -1,4 +1,4 @@
-"""The pybullet view of a scene: a world built from a :class:`~rgmcad.scene.Scene`.
+"""The pybullet view of a scene: a world built from a :class:`~rgmcad.scene.bodies.Scene`.
 
 Each process owns one DIRECT client (:func:`client`); every world resets it and rebuilds from
 scratch, because restoring a saved state does not reproduce a fresh run (stale contact
@@ -36,9 +36,9 @@ import numpy as np
 import pybullet as pb
 
 from rgmcad.geometry import from_pybullet, invert, to_pybullet, transform_points
-from rgmcad.partlib import BoxPiece, ConvexPiece, CylinderPiece, Piece, PlanePiece, SpherePiece
-from rgmcad.scenario import SimulationSettings
-from rgmcad.scene import Scene, SceneBody
+from rgmcad.parts.family import BoxPiece, ConvexPiece, CylinderPiece, Piece, PlanePiece, SpherePiece
+from rgmcad.scene.bodies import Scene, SceneBody
+from rgmcad.scene.scenario import SimulationSettings
 
 _CLIENT: int | None = None
 

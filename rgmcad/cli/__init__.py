@@ -17,21 +17,22 @@ from pathlib import Path
 import numpy as np
 
 from rgmcad.errors import ScenarioError
+from rgmcad.shipped import shipped_dir
 
-SCENARIO_DIR = Path(__file__).resolve().parent.parent / "scenarios"
+SCENARIO_DIR = shipped_dir("scenarios")
 
 
 # --- shared helpers ---------------------------------------------------------------------------
 
 
 def _load(args):
-    from rgmcad.scenario import load_scenario
+    from rgmcad.scene.scenario import load_scenario
 
     return load_scenario(args.scenario)
 
 
 def _parts(scenario, args):
-    from rgmcad.scene import load_parts
+    from rgmcad.scene.bodies import load_parts
 
     first = not Path(args.build_dir).exists()
     if first:
@@ -41,7 +42,7 @@ def _parts(scenario, args):
 
 def resolve_layout(scenario, layout: str | None, vector: str | None):
     """(name, real values (d,)) of ``--layout NAME|FILE`` or ``--vector v1,...,vd``."""
-    from rgmcad.design_space import values_from_mapping, values_from_vector
+    from rgmcad.scene.design_space import values_from_mapping, values_from_vector
 
     where = str(scenario.path)
     if vector is not None:
@@ -69,7 +70,7 @@ def load_layout_file(scenario, path: Path) -> np.ndarray:
     """Real values (d,) from a layout file (JSON or TOML) with ``values`` or ``vector``."""
     import tomllib
 
-    from rgmcad.design_space import values_from_mapping, values_from_vector
+    from rgmcad.scene.design_space import values_from_mapping, values_from_vector
 
     try:
         text = path.read_text()
@@ -111,7 +112,7 @@ def _print_table(rows: list[tuple], headers: tuple) -> None:
 
 
 def cmd_simulate(args) -> int:
-    from rgmcad.simulate import simulate
+    from rgmcad.sim.run import simulate
 
     scenario = _load(args)
     name, values = resolve_layout(scenario, args.layout, args.vector)
@@ -119,7 +120,7 @@ def cmd_simulate(args) -> int:
     observer, frames, fps = None, [], 30.0
     every = max(1, int(round(1 / (fps * scenario.settings.timestep))))
     if args.video:
-        from rgmcad.render import Renderer
+        from rgmcad.sim.render import Renderer
 
         renderer = []
 
@@ -130,11 +131,11 @@ def cmd_simulate(args) -> int:
 
     result = simulate(scenario, values, parts, observer=observer, observe_every=every)
     if args.video and frames:
-        from rgmcad.render import save_video
+        from rgmcad.sim.render import save_video
 
         save_video(frames, Path(args.video), fps)
     if args.json:
-        from rgmcad.design_space import vector_from_values
+        from rgmcad.scene.design_space import vector_from_values
 
         out = result.to_dict()
         out.update(scenario=scenario.name, layout=name,
@@ -160,8 +161,8 @@ def cmd_simulate(args) -> int:
 
 
 def cmd_check(args) -> int:
-    from rgmcad.scene import make_scene
-    from rgmcad.validity import check_validity
+    from rgmcad.scene.bodies import make_scene
+    from rgmcad.sim.validity import check_validity
 
     scenario = _load(args)
     print(f"{scenario.name}: {scenario.description}")
@@ -191,7 +192,7 @@ def cmd_check(args) -> int:
                   "timeout (s)"))
     parts = _parts(scenario, args)
     print("\nlayouts:")
-    from rgmcad.design_space import values_from_mapping, vector_from_values
+    from rgmcad.scene.design_space import values_from_mapping, vector_from_values
 
     for name, mapping in scenario.layouts.items():
         values = values_from_mapping(scenario, mapping)
@@ -219,9 +220,9 @@ def _event_row(name, event, default_timeout: float) -> tuple:
 
 
 def cmd_render(args) -> int:
-    from rgmcad.physics import World
-    from rgmcad.render import Renderer, save_png
-    from rgmcad.scene import make_scene
+    from rgmcad.scene.bodies import make_scene
+    from rgmcad.sim.render import Renderer, save_png
+    from rgmcad.sim.world import World
 
     scenario = _load(args)
     name, values = resolve_layout(scenario, args.layout, args.vector)
@@ -235,8 +236,8 @@ def cmd_render(args) -> int:
 def cmd_build_parts(args) -> int:
     from tqdm import tqdm
 
-    from rgmcad.build import build_parts, write_manifest
-    from rgmcad.scenario import load_scenario
+    from rgmcad.parts.build import build_parts, write_manifest
+    from rgmcad.scene.scenario import load_scenario
 
     paths = [Path(p) for p in args.scenarios] or sorted(SCENARIO_DIR.glob("*.toml"))
     scenarios = [load_scenario(p) for p in paths]
@@ -255,7 +256,7 @@ def cmd_build_parts(args) -> int:
     parts = build_parts(instances, out, progress=progress, force=args.force)
     bar.close()
     by_id = {p.id: p for p in parts}
-    from rgmcad.build import part_id
+    from rgmcad.parts.build import part_id
 
     objects = {}
     for s in scenarios:
@@ -333,22 +334,22 @@ COMMANDS: dict[str, tuple[Callable, Callable, str]] = {
     "render": (_configure_render, cmd_render, "draw a layout to a PNG"),
     "build parts": (_configure_build_parts, cmd_build_parts,
                     "build the parts of the shipped scenarios (STEP, STL, GLB, collision pieces)"),
-    "template": (_lazy("cli_print", "configure_template"), _lazy("cli_print", "cmd_template"),
+    "template": (_lazy("cli.printing", "configure_template"), _lazy("cli.printing", "cmd_template"),
                  "write a printable 1:1 tiled assembly template (PDF and SVG) of a layout"),
-    "verify-print": (_lazy("cli_print", "configure_verify_print"),
-                     _lazy("cli_print", "cmd_verify_print"),
+    "verify-print": (_lazy("cli.printing", "configure_verify_print"),
+                     _lazy("cli.printing", "cmd_verify_print"),
                      "measure the scale a template sheet was printed at, from a scan or photo"),
-    "optimize": (_lazy("cli_optimize", "configure_optimize"),
-                 _lazy("cli_optimize", "cmd_optimize"),
+    "optimize": (_lazy("cli.optimize", "configure_optimize"),
+                 _lazy("cli.optimize", "cmd_optimize"),
                  "learn the success probability and optimise a robust layout (resumable run)"),
-    "evaluate": (_lazy("cli_optimize", "configure_evaluate"),
-                 _lazy("cli_optimize", "cmd_evaluate"),
+    "evaluate": (_lazy("cli.optimize", "configure_evaluate"),
+                 _lazy("cli.optimize", "cmd_evaluate"),
                  "measure a layout's local and global robustness by simulation"),
 }
 
 
 def build_parser() -> argparse.ArgumentParser:
-    from rgmcad.build import DEFAULT_BUILD_DIR
+    from rgmcad.parts.build import DEFAULT_BUILD_DIR
 
     parser = argparse.ArgumentParser(prog="rgmcad", description="Design chain-reaction "
                                      "contraptions that work when built by hand.")

@@ -21,7 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
-from rgmcad.build import DEFAULT_BUILD_DIR
+from rgmcad.parts.build import DEFAULT_BUILD_DIR
 
 __all__ = ["SimRecord", "ScenarioProblem", "context", "scenario_digest", "event_parents", "any_joins"]
 
@@ -93,8 +93,8 @@ def context(scenario_path: str, build_dir: str):
     """
     key = (scenario_path, build_dir)
     if key not in _CONTEXTS:
-        from rgmcad.scenario import load_scenario
-        from rgmcad.scene import load_parts
+        from rgmcad.scene.scenario import load_scenario
+        from rgmcad.scene.bodies import load_parts
 
         scenario = load_scenario(scenario_path)
         _CONTEXTS[key] = (scenario, load_parts(scenario, Path(build_dir)))
@@ -147,7 +147,7 @@ class ScenarioProblem:
 
     @property
     def scenario(self):
-        """The loaded :class:`~rgmcad.scenario.Scenario` (cached per process)."""
+        """The loaded :class:`~rgmcad.scene.scenario.Scenario` (cached per process)."""
         return context(self.scenario_path, self.build_dir)[0]
 
     @property
@@ -157,13 +157,13 @@ class ScenarioProblem:
 
     def values(self, x) -> np.ndarray:
         """Real parameter values (d,) of a design vector (d,)."""
-        from rgmcad.design_space import values_from_vector
+        from rgmcad.scene.design_space import values_from_vector
 
         return values_from_vector(self.scenario, np.asarray(x, dtype=float))
 
     def _validity(self, x):
-        from rgmcad.scene import make_scene
-        from rgmcad.validity import check_validity
+        from rgmcad.scene.bodies import make_scene
+        from rgmcad.sim.validity import check_validity
 
         return check_validity(make_scene(self.scenario, self.values(x), self.parts))
 
@@ -171,13 +171,13 @@ class ScenarioProblem:
 
     def validity(self, X: np.ndarray) -> np.ndarray:
         """(n,) bool: whether each row of ``X`` (n, d) is physically valid (the exact test of
-        :func:`~rgmcad.validity.check_validity`, run on all rows at once)."""
-        from rgmcad.design_space import bounds
+        :func:`~rgmcad.sim.validity.check_validity`, run on all rows at once)."""
+        from rgmcad.scene.design_space import bounds
 
         X = np.atleast_2d(np.asarray(X, dtype=float))
         key = (self.scenario_path, self.build_dir)
         if key not in _TESTERS:
-            from rgmcad.validity import LayoutValidity
+            from rgmcad.sim.validity import LayoutValidity
 
             _TESTERS[key] = LayoutValidity(self.scenario, self.parts)
         low, high = bounds(self.scenario)
@@ -199,7 +199,7 @@ class ScenarioProblem:
 
     def simulate_one(self, x: np.ndarray) -> SimRecord:
         """Simulate the design vector ``x`` (d,) (the validity test included)."""
-        from rgmcad.simulate import simulate
+        from rgmcad.sim.run import simulate
 
         r = simulate(self.scenario, self.values(x), self.parts)
         labels = r.labels()

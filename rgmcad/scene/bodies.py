@@ -13,11 +13,11 @@ from pathlib import Path
 
 import numpy as np
 
-from rgmcad.build import DEFAULT_BUILD_DIR, BuiltBody, BuiltPart, load_part
-from rgmcad.design_space import world_poses
 from rgmcad.geometry import invert, transform_points
-from rgmcad.partlib import MAIN
-from rgmcad.scenario import FRAME, Physical, Scenario
+from rgmcad.parts.build import DEFAULT_BUILD_DIR, BuiltBody, BuiltPart, load_part
+from rgmcad.parts.family import MAIN
+from rgmcad.scene.design_space import world_poses
+from rgmcad.scene.scenario import FRAME, Physical, Scenario
 
 
 @dataclass(frozen=True, eq=False)

@@ -12,8 +12,8 @@ import numpy as np
 import pybullet as pb
 
 from rgmcad.geometry import to_pybullet
-from rgmcad.physics import World
-from rgmcad.scene import Scene
+from rgmcad.scene.bodies import Scene
+from rgmcad.sim.world import World
 
 _STATIC = (0.72, 0.70, 0.66, 1.0)
 _PALETTE = [(0.85, 0.33, 0.10, 1), (0.13, 0.47, 0.71, 1), (0.17, 0.63, 0.17, 1),

@@ -1,6 +1,6 @@
 """Check the scale of a printed template sheet from a scan or a photo of it.
 
-The sheet's AprilTag marks (see :mod:`rgmcad.template` for their ids and positions) tell
+The sheet's AprilTag marks (see :mod:`rgmcad.printing.template` for their ids and positions) tell
 which sheet it is and where its marks were meant to be, in millimetres. A picture has no
 scale of its own, so the marks' spacing is compared against a reference of known size:
 
@@ -28,7 +28,7 @@ from pathlib import Path
 import numpy as np
 
 from rgmcad.errors import ScenarioError
-from rgmcad.template import (
+from rgmcad.printing.template import (
     PAPERS_MM,
     decode_tag_id,
     mark_corners_portrait,

@@ -2,9 +2,9 @@
 
 ``optimize`` learns the success probability of a scenario's design space and refines the
 most robust layout (paper sections 5-7) in a run directory that survives interruptions
-(:mod:`rgmcad.runstore`); ``evaluate`` measures a layout's local and global robustness by
-simulation (:mod:`rgmcad.evaluate`). Both spread simulations over a process pool
-(:mod:`rgmcad.executor`). :data:`rgmcad.cli.COMMANDS` wires them in.
+(:mod:`rgmcad.runs.store`); ``evaluate`` measures a layout's local and global robustness by
+simulation (:mod:`rgmcad.runs.robustness`). Both spread simulations over a process pool
+(:mod:`rgmcad.runs.executor`). :data:`rgmcad.cli.COMMANDS` wires them in.
 """
 
 from __future__ import annotations
@@ -61,14 +61,14 @@ def _out(text: str = "") -> None:
 
 
 def _scenario(args):
-    from rgmcad.scenario import load_scenario
+    from rgmcad.scene.scenario import load_scenario
 
     return load_scenario(args.scenario)
 
 
 def _problem_and_executor(args):
-    from rgmcad.executor import make_executor
-    from rgmcad.problem import ScenarioProblem, context
+    from rgmcad.runs.executor import make_executor
+    from rgmcad.runs.problem import ScenarioProblem, context
 
     if not Path(args.build_dir).exists():
         sys.stderr.write(f"building parts into {args.build_dir} (first run only)...\n")
@@ -81,8 +81,8 @@ def layout_document(scenario, x, **extra) -> dict:
     """A layout file (usable as ``--layout FILE``): the scenario's name, the normalised
     ``vector``, the real ``values`` (metres and degrees), and the parent-relative ``poses`` of
     the objects with free parameters; ``extra`` keys are added."""
-    from rgmcad.design_space import local_poses, values_from_vector
     from rgmcad.geometry import POSE_KEYS
+    from rgmcad.scene.design_space import local_poses, values_from_vector
 
     x = np.asarray(x, dtype=float)
     values = values_from_vector(scenario, x)
@@ -155,8 +155,8 @@ class _Bar:
 
 def cmd_optimize(args) -> int:
     start = time.perf_counter()
-    from rgmcad.problem import scenario_digest
-    from rgmcad.runstore import RecordedProblem, RunStore, run_identity
+    from rgmcad.runs.problem import scenario_digest
+    from rgmcad.runs.store import RecordedProblem, RunStore, run_identity
 
     scenario = _scenario(args)
     settings = budget(args.budget)
@@ -227,8 +227,8 @@ def _influence(model, x: np.ndarray) -> np.ndarray:
 
 
 def _write_outputs(scenario, args, store, recorded, result, chosen, wall_time) -> dict:
-    from rgmcad.design_space import bounds
     from rgmcad.learning import placement_tolerance
+    from rgmcad.scene.design_space import bounds
 
     run_dir = store.directory
     model = result.model
@@ -392,7 +392,7 @@ def _plot_slice(scenario, model, x, influence, path: Path) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from rgmcad.design_space import bounds
+    from rgmcad.scene.design_space import bounds
 
     low, high = bounds(scenario)
     order = np.argsort(-influence, kind="stable")
@@ -477,10 +477,10 @@ def cmd_evaluate(args) -> int:
     from tqdm import tqdm
 
     from rgmcad.cli import resolve_layout
-    from rgmcad.design_space import vector_from_values
     from rgmcad.errors import ScenarioError
-    from rgmcad.evaluate import local_robustness, plot_curves
-    from rgmcad.executor import map_blocks
+    from rgmcad.runs.executor import map_blocks
+    from rgmcad.runs.robustness import local_robustness, plot_curves
+    from rgmcad.scene.design_space import vector_from_values
 
     if args.samples < 1:
         raise ScenarioError("--samples", "", "expected a positive number of layouts per radius")

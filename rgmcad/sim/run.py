@@ -15,13 +15,13 @@ from enum import StrEnum
 
 import numpy as np
 
-from rgmcad.build import BuiltPart
-from rgmcad.causal import SUCCESS, CausalGraph
-from rgmcad.events import make_condition
-from rgmcad.physics import World
-from rgmcad.scenario import Scenario
-from rgmcad.scene import make_scene
-from rgmcad.validity import TOLERANCE, Validity, check_validity
+from rgmcad.parts.build import BuiltPart
+from rgmcad.scene.bodies import make_scene
+from rgmcad.scene.scenario import Scenario
+from rgmcad.sim.causal import SUCCESS, CausalGraph
+from rgmcad.sim.events import make_condition
+from rgmcad.sim.validity import TOLERANCE, Validity, check_validity
+from rgmcad.sim.world import World
 
 
 class Outcome(StrEnum):
@@ -80,7 +80,7 @@ def simulate(scenario: Scenario, values, parts: Mapping[str, BuiltPart], *,
 
     Parameters
     ----------
-    parts : built parts by object name (:func:`rgmcad.scene.load_parts`).
+    parts : built parts by object name (:func:`rgmcad.scene.bodies.load_parts`).
     check : run the validity test first (an invalid layout is not simulated).
     observer : called as ``observer(world, t)`` every ``observe_every`` steps and at the end
         (for rendering; leave None for speed).

@@ -1,11 +1,11 @@
 """The printing commands: ``rgmcad template`` and ``rgmcad verify-print``.
 
 ``rgmcad template SCENARIO --layout NAME|FILE --out DIR`` poses a layout, turns every body
-of the scene into a :class:`rgmcad.template.PlacedPart` (base planes become
-:class:`rgmcad.template.BasePlane`, never drawn) and writes ``DIR/template.pdf`` (tiled,
+of the scene into a :class:`rgmcad.printing.template.PlacedPart` (base planes become
+:class:`rgmcad.printing.template.BasePlane`, never drawn) and writes ``DIR/template.pdf`` (tiled,
 tagged sheets) and ``DIR/template.svg`` (1:1, millimetres) with
-:func:`rgmcad.template.make_template`. ``rgmcad verify-print IMAGE`` measures the scale a
-sheet was printed at with :func:`rgmcad.printcheck.verify_print`.
+:func:`rgmcad.printing.template.make_template`. ``rgmcad verify-print IMAGE`` measures the scale a
+sheet was printed at with :func:`rgmcad.printing.check.verify_print`.
 
 Placement order
 ---------------
@@ -127,7 +127,7 @@ def part_tolerances(scenario, obj_name: str, tolerances) -> tuple[str, ...]:
     """Notes for the body of object ``obj_name``: its own parameters first (``x ± 3 mm``),
     then those of the frames it is placed through (``bottom_track_joint.roll ± 2°``)."""
     from rgmcad.geometry import POSE_KEYS
-    from rgmcad.scenario import FRAME
+    from rgmcad.scene.scenario import FRAME
 
     notes = []
     chain = [obj_name]
@@ -165,10 +165,10 @@ def placement_order(scenario, scene) -> list[str]:
 
 
 def template_inputs(scenario, scene, tolerances=None):
-    """``(parts, base_planes)`` for :func:`rgmcad.template.make_template` from a scene."""
+    """``(parts, base_planes)`` for :func:`rgmcad.printing.template.make_template` from a scene."""
     import numpy as np
 
-    from rgmcad.template import BasePlane, PlacedPart
+    from rgmcad.printing.template import BasePlane, PlacedPart
 
     tolerances = tolerances or {}
     order = {name: k + 1 for k, name in enumerate(placement_order(scenario, scene))}
@@ -190,8 +190,8 @@ def template_inputs(scenario, scene, tolerances=None):
 
 def cmd_template(args) -> int:
     from rgmcad.cli import _load, _parts, resolve_layout
-    from rgmcad.scene import make_scene
-    from rgmcad.template import make_template
+    from rgmcad.printing.template import make_template
+    from rgmcad.scene.bodies import make_scene
 
     t0 = time.perf_counter()
     scenario = _load(args)
@@ -245,7 +245,7 @@ def cmd_template(args) -> int:
 
 
 def cmd_verify_print(args) -> int:
-    from rgmcad.printcheck import verify_print
+    from rgmcad.printing.check import verify_print
 
     check = verify_print(Path(args.image))
     if args.json:
@@ -265,7 +265,7 @@ def cmd_verify_print(args) -> int:
 
 
 def _ok(check) -> bool:
-    from rgmcad.printcheck import TOLERANCE_PERCENT
+    from rgmcad.printing.check import TOLERANCE_PERCENT
 
     return abs(check.scale_error_percent) <= TOLERANCE_PERCENT
 

@@ -6,8 +6,8 @@
 * An awake event succeeds when its condition holds (for ``hold`` seconds in a row, if given),
   and fails when it has been awake for more than its timeout (2 s by default) without that.
   Success and failure are final. ``negate = true`` only swaps the condition for its negation
-  (:func:`rgmcad.events.make_condition`): the event succeeds once the condition is false.
-* ``negate = "always"`` (:attr:`~rgmcad.eventspec.Negation.ALWAYS`) turns this around: the
+  (:func:`rgmcad.sim.events.make_condition`): the event succeeds once the condition is false.
+* ``negate = "always"`` (:attr:`~rgmcad.scene.eventspec.Negation.ALWAYS`) turns this around: the
   condition must never hold (for ``hold`` seconds in a row) while the event is awake. The
   event fails at the step it does, and succeeds, waking its children, at the first step more
   than its timeout after it woke. Its condition is the plain, un-negated one.
@@ -24,8 +24,8 @@ from __future__ import annotations
 
 from collections.abc import Callable, Mapping
 
-from rgmcad.eventspec import Negation
-from rgmcad.scenario import EventSpec
+from rgmcad.scene.eventspec import Negation
+from rgmcad.scene.scenario import EventSpec
 
 ASLEEP, AWAKE, SUCCESS, FAILURE = "asleep", "awake", "success", "failure"
 
@@ -36,7 +36,7 @@ class CausalGraph:
     Parameters
     ----------
     events : the scenario's event specs (a DAG with one root), in any order.
-    conditions : the condition of each event (see :mod:`rgmcad.events`).
+    conditions : the condition of each event (see :mod:`rgmcad.sim.events`).
     default_timeout : seconds an event may stay awake (when its spec gives none).
     """
 

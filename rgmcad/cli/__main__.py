@@ -1,0 +1,5 @@
+import sys
+
+from rgmcad.cli import main
+
+sys.exit(main())
