@@ -10,8 +10,9 @@ import pypdfium2 as pdfium
 import pytest
 from PIL import Image
 
-from rgmcad.cli import main, resolve_layout
+from rgmcad.cli import main
 from rgmcad.scene.bodies import load_parts, make_scene
+from rgmcad.scene.layout_files import resolve_layout
 from rgmcad.scene.scenario import load_scenario
 
 DPI = 300

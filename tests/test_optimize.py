@@ -12,7 +12,7 @@ import pytest
 
 import rgmcad.cli.optimize
 from rgmcad.cli import main
-from rgmcad.errors import ScenarioError
+from rgmcad.errors import RunDirectoryError
 from rgmcad.learning import LearningSettings
 from rgmcad.runs.problem import ScenarioProblem, SimRecord
 from rgmcad.runs.robustness import EPS_GRID, ball_samples, wilson_interval
@@ -169,9 +169,9 @@ def test_run_store_drops_a_half_written_line_and_appends_after_it(tmp_path):
 
 def test_run_store_refuses_other_settings_and_a_second_user(tmp_path):
     with RunStore(tmp_path, run_identity("s", "0" * 64, 0, TINY)):
-        with pytest.raises(ScenarioError, match="another rgmcad process"):
+        with pytest.raises(RunDirectoryError, match="another rgmcad process"):
             RunStore(tmp_path, run_identity("s", "0" * 64, 0, TINY))
-    with pytest.raises(ScenarioError, match="n_initial"):
+    with pytest.raises(RunDirectoryError, match="n_initial"):
         RunStore(tmp_path, run_identity("s", "0" * 64, 0, TINY.replace(n_initial=41)))
     # n_jobs changes the speed, not the result
     RunStore(tmp_path, run_identity("s", "0" * 64, 0, TINY.replace(n_jobs=2))).close()
@@ -182,7 +182,7 @@ def test_run_store_refuses_other_settings_and_a_second_user(tmp_path):
     stored["settings"].pop("n_initial")
     stored["settings"]["retired_option"] = None
     path.write_text(json.dumps(stored))
-    with pytest.raises(ScenarioError) as refused:
+    with pytest.raises(RunDirectoryError) as refused:
         RunStore(tmp_path, run_identity("s", "0" * 64, 0, TINY))
     assert "settings.n_initial: run has nothing, command asks 40" in str(refused.value)
     assert "settings.retired_option: run has None, command asks nothing" in str(refused.value)

@@ -9,7 +9,7 @@ import pytest
 import trimesh
 from PIL import Image
 
-from rgmcad.errors import ScenarioError
+from rgmcad.errors import PrintCheckError
 from rgmcad.printing.check import verify_print
 from rgmcad.printing.template import BasePlane, PlacedPart, make_template
 
@@ -134,12 +134,12 @@ def test_unreadable_and_tagless_images(tmp_path):
     bad = tmp_path / "broken.png"
     bad.write_bytes(b"this is not an image")
     for path in (bad, tmp_path / "missing.png"):
-        with pytest.raises(ScenarioError) as err:
+        with pytest.raises(PrintCheckError) as err:
             verify_print(path)
         assert "cannot read" in str(err.value) and "\n" not in str(err.value)
     rng = np.random.default_rng(0)
     blank = _save(tmp_path, "blank.png", rng.integers(100, 255, (800, 600), dtype=np.uint8))
-    with pytest.raises(ScenarioError) as err:
+    with pytest.raises(PrintCheckError) as err:
         verify_print(blank)
     assert "no template marks" in str(err.value) and "\n" not in str(err.value)
     assert str(blank) in str(err.value)

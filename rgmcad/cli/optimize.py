@@ -18,7 +18,7 @@ from pathlib import Path
 import numpy as np
 
 __all__ = ["BUDGETS", "budget", "configure_optimize", "cmd_optimize", "configure_evaluate",
-           "cmd_evaluate", "layout_document"]
+           "cmd_evaluate"]
 
 BUDGETS = ("default", "small")
 """Names of the settings of ``--budget`` (see :func:`budget`)."""
@@ -75,28 +75,6 @@ def _problem_and_executor(args):
     problem = ScenarioProblem(args.scenario, args.build_dir)
     executor = make_executor(args.workers, context, (problem.scenario_path, problem.build_dir))
     return problem, executor
-
-
-def layout_document(scenario, x, **extra) -> dict:
-    """A layout file (usable as ``--layout FILE``): the scenario's name, the normalised
-    ``vector``, the real ``values`` (metres and degrees), and the parent-relative ``poses`` of
-    the objects with free parameters; ``extra`` keys are added."""
-    from rgmcad.geometry import POSE_KEYS
-    from rgmcad.scene.design_space import local_poses, values_from_vector
-
-    x = np.asarray(x, dtype=float)
-    values = values_from_vector(scenario, x)
-    poses = local_poses(scenario, values)
-    moved = dict.fromkeys(f.object for f in scenario.free)
-    return {
-        "scenario": scenario.name,
-        "vector": [float(v) for v in x],
-        "values": {f.name: float(v) for f, v in zip(scenario.free, values, strict=True)},
-        "poses": {obj: {"parent": scenario.objects[obj].parent,
-                        **{k: float(v) for k, v in zip(POSE_KEYS, poses[obj], strict=True)}}
-                  for obj in moved},
-        **extra,
-    }
 
 
 def _write_json(path: Path, data) -> Path:
@@ -242,6 +220,8 @@ def _write_outputs(scenario, args, store, recorded, result, chosen, wall_time) -
     tolerances = {f.name: [float(tol[j, 0] * (high[j] - low[j])),
                            float(tol[j, 1] * (high[j] - low[j]))]
                   for j, f in enumerate(scenario.free)}
+    from rgmcad.scene.layout_files import layout_document
+
     influence = _influence(model, x)
     store.save_model(model)
     layout = _write_json(run_dir / LAYOUT_FILE, layout_document(
@@ -476,14 +456,14 @@ def configure_evaluate(p: argparse.ArgumentParser) -> None:
 def cmd_evaluate(args) -> int:
     from tqdm import tqdm
 
-    from rgmcad.cli import resolve_layout
-    from rgmcad.errors import ScenarioError
+    from rgmcad.errors import UsageError
     from rgmcad.runs.executor import map_blocks
     from rgmcad.runs.robustness import local_robustness, plot_curves
     from rgmcad.scene.design_space import vector_from_values
+    from rgmcad.scene.layout_files import resolve_layout
 
     if args.samples < 1:
-        raise ScenarioError("--samples", "", "expected a positive number of layouts per radius")
+        raise UsageError("--samples", "", "expected a positive number of layouts per radius")
     scenario = _scenario(args)
     name, values = resolve_layout(scenario, args.layout, None)
     x = vector_from_values(scenario, values)

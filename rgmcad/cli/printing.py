@@ -41,12 +41,11 @@ The library modules are imported inside the commands, so the CLI starts fast.
 from __future__ import annotations
 
 import json
-import math
 import sys
 import time
 from pathlib import Path
 
-from rgmcad.errors import ScenarioError
+from rgmcad.errors import RgmcadError, ScenarioError, UsageError
 
 PAPER_CHOICES = ("a4", "letter", "a3", "auto")
 PLANE_CHOICES = ("floor", "board", "xy", "xz", "yz")
@@ -60,50 +59,6 @@ def _say(text: str = "") -> None:
 
 
 # --- tolerances -----------------------------------------------------------------------------------
-
-
-def read_tolerances(scenario, path: Path) -> dict[str, tuple[float, float]]:
-    """``{"object.component": (down, up)}`` from a layout file's ``tolerances`` table.
-
-    Values are real units (metres, degrees), both non-negative. A file without the table
-    gives ``{}``.
-
-    Raises
-    ------
-    ScenarioError
-        The table, a key or a value is malformed.
-    """
-    import tomllib
-
-    from rgmcad.geometry import POSE_KEYS
-
-    try:
-        text = path.read_text()
-        data = tomllib.loads(text) if path.suffix == ".toml" else json.loads(text)
-    except (OSError, ValueError) as exc:
-        raise ScenarioError(str(path), "", f"cannot read the layout file ({exc})") from None
-    if not isinstance(data, dict) or "tolerances" not in data:
-        return {}
-    table = data["tolerances"]
-    if not isinstance(table, dict):
-        raise ScenarioError(str(path), "tolerances", 'expected a table {"object.component": '
-                            "[down, up]} in metres and degrees")
-    out: dict[str, tuple[float, float]] = {}
-    for key, value in table.items():
-        obj, _, component = str(key).rpartition(".")
-        if obj not in scenario.objects or component not in POSE_KEYS:
-            raise ScenarioError(str(path), f"tolerances.{key}", "expected object.component with "
-                                f"a component of {', '.join(POSE_KEYS)} and an object of "
-                                f"{scenario.name} ({', '.join(scenario.objects)})")
-        if isinstance(value, int | float) and not isinstance(value, bool):
-            value = [value, value]
-        if (not isinstance(value, list) or len(value) != 2
-                or any(isinstance(v, bool) or not isinstance(v, int | float) for v in value)
-                or not all(math.isfinite(v) for v in value)):
-            raise ScenarioError(str(path), f"tolerances.{key}", "expected [down, up] (two "
-                                "numbers, metres or degrees) or one number")
-        out[key] = (abs(float(value[0])), abs(float(value[1])))
-    return out
 
 
 def _number(v: float) -> str:
@@ -189,29 +144,30 @@ def template_inputs(scenario, scene, tolerances=None):
 
 
 def cmd_template(args) -> int:
-    from rgmcad.cli import _load, _parts, resolve_layout
+    from rgmcad.cli.common import load_parts_of, load_scenario_arg
     from rgmcad.printing.template import make_template
     from rgmcad.scene.bodies import make_scene
+    from rgmcad.scene.layout_files import read_tolerances, resolve_layout
 
     t0 = time.perf_counter()
-    scenario = _load(args)
+    scenario = load_scenario_arg(args)
     name, values = resolve_layout(scenario, args.layout, None)
     tolerances = {}
     if args.layout and args.layout not in scenario.layouts:  # a layout file
         tolerances = read_tolerances(scenario, Path(args.layout))
-    scene = make_scene(scenario, values, _parts(scenario, args))
+    scene = make_scene(scenario, values, load_parts_of(scenario, args))
     parts, planes = template_inputs(scenario, scene, tolerances)
     paper = None if args.paper == "auto" else args.paper
     try:
         result = make_template(parts, planes, Path(args.out), plane=args.plane, paper=paper,
                                overlap_mm=args.overlap,
                                title=f"{scenario.name}, layout {name}")
-    except ScenarioError:
+    except RgmcadError:
         raise
     except ValueError as exc:  # no such plane in the scenario, overlap out of range, too big
         raise ScenarioError(str(scenario.path), "template", str(exc)) from None
     except OSError as exc:
-        raise ScenarioError(str(args.out), "--out", f"cannot write the template ({exc})") \
+        raise UsageError(str(args.out), "--out", f"cannot write the template ({exc})") \
             from None
     wall = time.perf_counter() - t0
     cols, rows = result.grid

@@ -46,7 +46,7 @@ from pathlib import Path
 
 import numpy as np
 
-from rgmcad.errors import ScenarioError
+from rgmcad.errors import PartBuildError, ScenarioError
 from rgmcad.parts.family import (
     MAIN,
     ConvexPiece,
@@ -318,11 +318,11 @@ def _build_solid_part(family: Family, params, pid: str, tmp: Path) -> dict:
     built = family.bodies_of(family.build(params))
     shapes = {k: _as_shape(cq, s, where, k) for k, s in built.items()}
     if MAIN not in shapes:
-        raise ScenarioError(where, "build", 'build must return the main body (key "")')
+        raise PartBuildError(where, "build", 'build must return the main body (key "")')
     shapes = {MAIN: shapes.pop(MAIN), **shapes}
     pieces = family.collision_pieces(params)
     if pieces is not None and set(pieces) != set(shapes):
-        raise ScenarioError(where, "collision", f"collision bodies {sorted(pieces)} differ from "
+        raise PartBuildError(where, "collision", f"collision bodies {sorted(pieces)} differ from "
                             f"build bodies {sorted(shapes)}")
 
     bodies: dict[str, dict] = {}
@@ -330,7 +330,7 @@ def _build_solid_part(family: Family, params, pid: str, tmp: Path) -> dict:
     for key, shape in shapes.items():
         volume, com, inertia = _mass_properties(shape)
         if not volume > 0:
-            raise ScenarioError(where, "build", f"body {key!r} has no volume ({volume})")
+            raise PartBuildError(where, "build", f"body {key!r} has no volume ({volume})")
         bbox = _exact_bbox(shape)
         vertices, faces, tolerance = _tessellate(shape, volume, bbox, where, key)
         body_pieces = pieces[key] if pieces is not None else _decompose(vertices, faces, bbox)
@@ -378,7 +378,7 @@ def _as_shape(cq, shape, where: str, key: str):
     if isinstance(shape, cq.Workplane):
         shape = shape.findSolid()
     if not isinstance(shape, cq.Shape) or not shape.isValid():
-        raise ScenarioError(where, "build", f"body {key!r} is not a valid CadQuery solid")
+        raise PartBuildError(where, "build", f"body {key!r} is not a valid CadQuery solid")
     return shape
 
 
@@ -436,7 +436,7 @@ def _tessellate(shape, volume: float, bbox: np.ndarray, where: str, key: str):
             vertices = np.ascontiguousarray(mesh.vertices, dtype=np.float64)
             faces = np.ascontiguousarray(mesh.faces, dtype=np.int64)
             return vertices, faces, {"linear": linear, "angular": angle}
-    raise ScenarioError(where, "build", f"body {key!r}: no watertight mesh within "
+    raise PartBuildError(where, "build", f"body {key!r}: no watertight mesh within "
                         f"{VOLUME_TOLERANCE:.1%} of the solid's volume (last error {error:.2%})")
 
 
@@ -620,8 +620,9 @@ def _read_part(folder: Path) -> BuiltPart:
 
 def build_parts(instances: Iterable[tuple[Family, object]], out_dir: Path = DEFAULT_BUILD_DIR,
                 *, progress: Callable[[int, int, str, bool], None] | None = None,
-                force: bool = False) -> list[BuiltPart]:
-    """Build every distinct part instance not built yet, and write ``<out_dir>/manifest.json``.
+                force: bool = False, manifest: bool = True) -> list[BuiltPart]:
+    """Build every distinct part instance not built yet, and write ``<out_dir>/manifest.json``
+    (unless ``manifest`` is false).
 
     Parameters
     ----------
@@ -656,7 +657,32 @@ def build_parts(instances: Iterable[tuple[Family, object]], out_dir: Path = DEFA
         parts.append(part)
         if progress is not None:
             progress(done, len(unique), pid, cached)
-    write_manifest(parts, out_dir)
+    if manifest:
+        write_manifest(parts, out_dir)
+    return parts
+
+
+def build_scenario_parts(scenarios, out_dir: Path = DEFAULT_BUILD_DIR, *,
+                         progress: Callable[[int, int, str, bool], None] | None = None,
+                         force: bool = False) -> list[BuiltPart]:
+    """Build the parts of scenarios (:func:`build_parts`) and write the manifest once, with
+    ``objects``: each scenario object's part id and, for moving bodies, its mass (kg) and
+    inertia (kg m^2, about the centre of mass, part axes)."""
+    out_dir = Path(out_dir)
+    instances = [(s.family(o), o.params) for s in scenarios for o in s.body_objects()]
+    parts = build_parts(instances, out_dir, progress=progress, force=force, manifest=False)
+    by_id = {p.id: p for p in parts}
+    objects = {}
+    for s in scenarios:
+        for o in s.body_objects():
+            pid = part_id(s.family(o), o.params)
+            main = by_id[pid].bodies.get(MAIN)
+            entry = {"part": pid}
+            if main is not None and not o.physical.static:
+                mass = o.physical.mass or o.physical.density * main.volume
+                entry.update(mass=mass, inertia=(main.inertia_unit * mass / main.volume).tolist())
+            objects[f"{s.name}/{o.name}"] = entry
+    write_manifest(parts, out_dir, extra={"objects": objects})
     return parts
 
 

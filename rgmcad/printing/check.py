@@ -27,7 +27,7 @@ from pathlib import Path
 
 import numpy as np
 
-from rgmcad.errors import ScenarioError
+from rgmcad.errors import PrintCheckError
 from rgmcad.printing.template import (
     PAPERS_MM,
     decode_tag_id,
@@ -108,7 +108,7 @@ def _load(path: Path) -> tuple[np.ndarray, float | None]:
             else:
                 grey = np.asarray(im.convert("L"))
     except (OSError, UnidentifiedImageError, ValueError) as exc:
-        raise ScenarioError(path, "", f"cannot read the image ({exc})") from None
+        raise PrintCheckError(path, "", f"cannot read the image ({exc})") from None
     value = None
     if dpi:
         try:
@@ -387,7 +387,7 @@ def verify_print(image_path) -> PrintCheck:
     grey, dpi = _load(path)
     marks = detect_marks(grey)
     if not marks:
-        raise ScenarioError(path, "", "no template marks (AprilTag 36h11) found: scan or "
+        raise PrintCheckError(path, "", "no template marks (AprilTag 36h11) found: scan or "
                             "photograph the whole sheet, flat and in focus")
     slots: dict[int, list[int]] = {}
     for i in marks:
@@ -421,7 +421,7 @@ def verify_print(image_path) -> PrintCheck:
 
     # (b) the paper's edges
     if len(marks) < 2:
-        raise ScenarioError(path, "", f"only one mark found ({ids[0]}): photograph the whole "
+        raise PrintCheckError(path, "", f"only one mark found ({ids[0]}): photograph the whole "
                             "sheet on a darker background, or scan it (recording its dpi)")
     ranked = sorted(fits, key=lambda p: fits[p][3])
     best, second = fits[ranked[0]][3], fits[ranked[1]][3]
@@ -436,7 +436,7 @@ def verify_print(image_path) -> PrintCheck:
         spread = abs(sw - sh) if len(found) == 2 else 0.05
         results.append((spread + (0.0 if paper == ranked[0] else 1e-4), paper, sw, sh))
     if not results:
-        raise ScenarioError(path, "", "cannot find the sheet's edges: photograph the whole "
+        raise PrintCheckError(path, "", "cannot find the sheet's edges: photograph the whole "
                             "sheet flat on a darker background, or scan it (recording its dpi)")
     _, paper, sw, sh = min(results)
     found = [v for v in (sw, sh) if v is not None]

@@ -36,7 +36,7 @@ from typing import Any
 
 import numpy as np
 
-from rgmcad.errors import ScenarioError
+from rgmcad.errors import RunDirectoryError
 from rgmcad.runs.executor import map_blocks
 from rgmcad.runs.problem import SimRecord
 
@@ -103,7 +103,7 @@ class RunStore:
             fcntl.flock(self._lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except OSError:
             self._lock.close()
-            raise ScenarioError(str(self.directory), "", "another rgmcad process is using this "
+            raise RunDirectoryError(str(self.directory), "", "another rgmcad process is using this "
                                 "run directory; wait for it or choose another --run") from None
         self.identity = dict(identity)
         self._check_identity()
@@ -122,14 +122,14 @@ class RunStore:
         try:
             stored = json.loads(path.read_text())
         except (OSError, ValueError) as exc:
-            raise ScenarioError(str(path), "", f"unreadable ({exc}); remove the directory or "
+            raise RunDirectoryError(str(path), "", f"unreadable ({exc}); remove the directory or "
                                 "choose another --run") from None
         if stored == self.identity:
             return
         diffs = _differences(stored, self.identity)
         shown = "; ".join(f"{k}: run has {a!r}, command asks {b!r}" for k, a, b in diffs[:3])
         more = f" (and {len(diffs) - 3} more)" if len(diffs) > 3 else ""
-        raise ScenarioError(str(path), diffs[0][0] if diffs else "",
+        raise RunDirectoryError(str(path), diffs[0][0] if diffs else "",
                             f"this run directory was made for another run ({shown}{more}); "
                             "use the same scenario file, seed and budget, or another --run DIR")
 
@@ -153,7 +153,7 @@ class RunStore:
                 x = np.asarray(row["vector"], dtype=float)
                 record = SimRecord.from_json(row)
             except (ValueError, KeyError, TypeError, IndexError) as exc:
-                raise ScenarioError(str(path), f"line {n}", f"not a simulation record ({exc}); "
+                raise RunDirectoryError(str(path), f"line {n}", f"not a simulation record ({exc}); "
                                     "the file was edited or damaged") from None
             self.records[_key(x)] = record
             self.n_lines += 1

@@ -103,3 +103,27 @@ def save_video(frames: list[np.ndarray], path: Path, fps: float) -> None:
                             macro_block_size=8) as writer:
         for frame in frames:
             writer.append_data(frame)
+
+
+def record_video(scenario, values, parts, path: Path, fps: float, width: int, height: int):
+    """Simulate a layout and write a video of it (:func:`save_video`); returns the
+    :class:`~rgmcad.sim.run.SimulationResult`."""
+    from rgmcad.sim.run import simulate
+
+    renderer, frames = [], []
+
+    def observer(world, t):
+        if not renderer:
+            renderer.append(Renderer(world, width, height))
+        frames.append(renderer[0].image())
+
+    every = max(1, int(round(1 / (fps * scenario.settings.timestep))))
+    result = simulate(scenario, values, parts, observer=observer, observe_every=every)
+    if frames:
+        save_video(frames, path, fps)
+    return result
+
+
+def render_png(scene: Scene, settings, path: Path, width: int, height: int) -> None:
+    """Draw a posed scene (at rest, before any step) to a PNG file."""
+    save_png(Renderer(World(scene, settings), width, height).image(), path)

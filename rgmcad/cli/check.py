@@ -1,0 +1,69 @@
+"""``rgmcad check``: validate a scenario file and summarise it."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from rgmcad.cli.common import add_scenario_arg, load_parts_of, load_scenario_arg, print_table, say
+
+
+def configure(p) -> None:
+    add_scenario_arg(p)
+
+
+def run(args) -> int:
+    from rgmcad.scene.bodies import make_scene
+    from rgmcad.scene.design_space import values_from_mapping, vector_from_values
+    from rgmcad.sim.validity import check_validity
+
+    scenario = load_scenario_arg(args)
+    say(f"{scenario.name}: {scenario.description}")
+    bodies = scenario.body_objects()
+    say(f"\nobjects ({len(bodies)} parts, {len(scenario.runs)} domino runs):")
+    rows = []
+    for obj in scenario.objects.values():
+        if obj.run is not None:
+            continue
+        if obj.name in scenario.runs:
+            n = len(scenario.runs[obj.name])
+            rows.append((obj.name, f"domino run ({n})", obj.parent or "-", ""))
+            continue
+        phys = obj.physical
+        kind = ("frame" if obj.part == "frame" else "static" if phys.static
+                else f"{phys.mass * 1000:.3g} g" if phys.mass is not None
+                else f"{phys.density:g} kg/m3")
+        rows.append((obj.name, obj.part, obj.parent or "-", kind))
+    print_table(rows, ("name", "part", "parent", "mass"))
+    say(f"\nfree parameters (d = {scenario.dimension}):")
+    print_table([(i, f.name, f"[{f.low:g}, {f.high:g}]", f.unit)
+                 for i, f in enumerate(scenario.free)], ("#", "parameter", "range", "unit"))
+    say(f"\nevents ({len(scenario.events)}):")
+    print_table([_event_row(n, e, scenario.settings.event_timeout)
+                 for n, e in scenario.events.items()],
+                ("event", "type", "objects", "after", "join", "negate", "hold (s)",
+                 "timeout (s)"))
+    parts = load_parts_of(scenario, args)
+    say("\nlayouts:")
+    for name, mapping in scenario.layouts.items():
+        values = values_from_mapping(scenario, mapping)
+        vec = vector_from_values(scenario, values)
+        validity = check_validity(make_scene(scenario, values, parts))
+        inside = "inside" if np.all((vec >= 0) & (vec <= 1)) else "OUTSIDE"
+        status = "valid" if validity.valid else "invalid: " + "; ".join(
+            f"{o.first}/{o.second} overlap {o.depth * 1000:.2f} mm" for o in validity.overlaps)
+        say(f"  {name}: {status}; {inside} the design space")
+    return 0
+
+
+def _event_row(name, event, default_timeout: float) -> tuple:
+    """One row of the event table: what the event watches, when, and how."""
+    objects = ", ".join(event.objects.values())
+    if event.end is not None:
+        objects += f" (end {event.end})"
+    elif event.point is not None:
+        objects += " (point {:g}, {:g}, {:g})".format(*event.point)
+    timeout = (f"{event.timeout:g}" if event.timeout is not None
+               else f"{default_timeout:g} (default)")  # [simulation] event_timeout
+    return (name, event.type, objects,
+            (" & " if event.join == "all" else " | ").join(event.after) or "(root)",
+            event.join if event.after else "-", event.negate.label, f"{event.hold:g}", timeout)

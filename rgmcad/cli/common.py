@@ -1,0 +1,47 @@
+"""What several commands share: the scenario argument, the part cache, layout flags, tables."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+
+def say(text: str = "") -> None:
+    """One line on stdout (the library itself never prints)."""
+    sys.stdout.write(text + "\n")
+
+
+def add_scenario_arg(p: argparse.ArgumentParser) -> None:
+    p.add_argument("scenario", help="scenario file (TOML), or the name of a shipped scenario "
+                   "(e.g. simple)")
+
+
+def add_layout_args(p: argparse.ArgumentParser, vector: bool = True) -> None:
+    group = p.add_mutually_exclusive_group()
+    group.add_argument("--layout", help="a named layout of the scenario (default: initial) or a "
+                       "layout file (JSON/TOML with `values` or `vector`)")
+    if vector:
+        group.add_argument("--vector", help="a design vector v1,...,vd in [0, 1]")
+
+
+def load_scenario_arg(args):
+    """The scenario named by ``args.scenario`` (a file, or a shipped scenario's name)."""
+    from rgmcad.scene.scenario import load_scenario
+
+    return load_scenario(args.scenario)
+
+
+def load_parts_of(scenario, args) -> dict:
+    """Built parts of ``scenario`` from the part cache (``--build-dir``), built if missing."""
+    from rgmcad.scene.bodies import load_parts
+
+    if not Path(args.build_dir).exists():
+        print(f"building parts into {args.build_dir} (first run only)...", file=sys.stderr)
+    return load_parts(scenario, Path(args.build_dir))
+
+
+def print_table(rows: list[tuple], headers: tuple) -> None:
+    widths = [max(len(str(x)) for x in col) for col in zip(headers, *rows, strict=False)]
+    for row in (headers, *rows):
+        say("  ".join(str(x).ljust(w) for x, w in zip(row, widths, strict=False)).rstrip())

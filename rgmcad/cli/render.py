@@ -1,0 +1,28 @@
+"""``rgmcad render``: draw a layout to a PNG."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from rgmcad.cli.common import add_layout_args, add_scenario_arg, load_parts_of, load_scenario_arg, say
+
+
+def configure(p) -> None:
+    add_scenario_arg(p)
+    add_layout_args(p)
+    p.add_argument("--out", required=True, metavar="FILE.png")
+    p.add_argument("--width", type=int, default=1024)
+    p.add_argument("--height", type=int, default=768)
+
+
+def run(args) -> int:
+    from rgmcad.scene.bodies import make_scene
+    from rgmcad.scene.layout_files import resolve_layout
+    from rgmcad.sim.render import render_png
+
+    scenario = load_scenario_arg(args)
+    name, values = resolve_layout(scenario, args.layout, args.vector)
+    scene = make_scene(scenario, values, load_parts_of(scenario, args))
+    render_png(scene, scenario.settings, Path(args.out), args.width, args.height)
+    say(f"{args.out}: {scenario.name}, layout {name}")
+    return 0
