@@ -25,20 +25,17 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "render": ("render", "draw a layout to a PNG"),
     "build parts": ("build_parts",
                     "build the parts of the shipped scenarios (STEP, STL, GLB, collision pieces)"),
-    "template": ("printing",
+    "template": ("template",
                  "write a printable 1:1 tiled assembly template (PDF and SVG) of a layout"),
-    "verify-print": ("printing",
+    "verify-print": ("verify_print",
                      "measure the scale a template sheet was printed at, from a scan or photo"),
     "optimize": ("optimize",
                  "learn the success probability and optimise a robust layout (resumable run)"),
-    "evaluate": ("optimize", "measure a layout's local and global robustness by simulation"),
+    "evaluate": ("evaluate", "measure a layout's local and global robustness by simulation"),
 }
 """Command -> (module of rgmcad.cli, help). Multi-word commands are sub-commands."""
 
-_ENTRY = {"template": ("configure_template", "cmd_template"),
-          "verify-print": ("configure_verify_print", "cmd_verify_print"),
-          "optimize": ("configure_optimize", "cmd_optimize"),
-          "evaluate": ("configure_evaluate", "cmd_evaluate")}
+_ENTRY = {"optimize": ("configure_optimize", "cmd_optimize")}
 
 
 def build_parser() -> argparse.ArgumentParser:
