@@ -177,7 +177,7 @@ def test_successive_halving_search_agrees_with_the_exhaustive_search():
 
 
 def test_grid_search_kernel_in_numpy_scores_as_libsvm_kernel(monkeypatch):
-    from rgmcad.learning import classifier
+    from rgmcad.learning import gridsearch
 
     oracle = disc_oracle(softness=0.05, seed=4)
     X = np.random.default_rng(4).random((400, 3))
@@ -185,15 +185,15 @@ def test_grid_search_kernel_in_numpy_scores_as_libsvm_kernel(monkeypatch):
     settings = [{"C": C, "gamma": g, "class_weight": w} for g in (0.1, 1.0, 10.0)
                 for C in (0.01, 1.0, 100.0) for w in (None, "balanced")]
     train, test = np.arange(0, 400, 3), np.setdiff1d(np.arange(400), np.arange(0, 400, 3))
-    numpy_kernel = classifier._score_settings(X, y, train, test, settings)
-    monkeypatch.setattr(classifier, "_PRECOMPUTED_MAX_ROWS", 0)
-    libsvm_kernel = classifier._score_settings(X, y, train, test, settings)
+    numpy_kernel = gridsearch.score_settings(X, y, train, test, settings)
+    monkeypatch.setattr(gridsearch, "PRECOMPUTED_MAX_ROWS", 0)
+    libsvm_kernel = gridsearch.score_settings(X, y, train, test, settings)
     assert numpy_kernel == libsvm_kernel
     assert len(set(numpy_kernel)) > 3  # the settings do differ
 
 
 def test_jobs_lent_to_a_process_pool_give_the_serial_result():
-    from rgmcad.learning.factorize import select_dimensions
+    from rgmcad.learning.dimensions import select_dimensions
     from rgmcad.learning.parallel import jobs_on
     from rgmcad.runs.executor import PoolExecutor
 
@@ -222,7 +222,7 @@ def test_mutual_information_estimate_follows_its_definition(classes):
     samples (any class) closer, in max-norm, than the k-th neighbour of i's class."""
     from scipy.special import digamma
 
-    from rgmcad.learning.factorize import joint_mutual_information
+    from rgmcad.learning.dimensions import joint_mutual_information
 
     rng = np.random.default_rng(classes)
     Z = rng.random((300, 3))

@@ -10,26 +10,24 @@ lets the simulator choose the layout to return among the optimum and the best-ra
 simulated successes.
 
 Modules, in pipeline order: ``settings``, ``graph`` (the causal graph's order and success
-logic), ``oracles`` (the simulator protocol and synthetic
-problems), ``sampling``, ``classifier``, ``active``, ``factorize``, ``optimize``, ``pipeline``,
-``verify``.
+logic), ``oracles`` (the simulator protocol and synthetic problems), ``sampling``,
+``gridsearch`` (the SVM's search and fits), ``classifier``, ``active``, ``dimensions`` (which
+parameters each event depends on), ``factorize``, ``optimize``, ``pipeline``, ``verify``.
 """
 
 import logging
 
 from .active import ActiveLearningResult, learn_active, query_distribution, synthesize_queries
 from .classifier import SuccessClassifier
+from .dimensions import EventAnalysis, analyse_event, select_dimensions
 from .factorize import (
     GLOBAL_EVENT,
     ConstantModel,
-    EventAnalysis,
     SPDFit,
     SPDModel,
-    analyse_event,
     event_dataset,
     fit_spd,
     global_dataset,
-    select_dimensions,
     smooth_min,
 )
 from .graph import Requirement, SuccessLogic, ancestors, topological_events

@@ -8,45 +8,23 @@ decision function ``f``, fitted on out-of-fold decision values of ``calibration_
 folds; the same out-of-fold values give the model's accuracy. Then one SVM is fitted on all
 the data.
 
-Why this calibration rather than ``SVC(probability=True)`` (libsvm's internal Platt scaling,
-which the authors used): both fit Platt's sigmoid on 5-fold out-of-fold decision values, and
-measured on a noisy 2-D disc oracle (5 seeds, 200 and 600 training points, three noise
-models) the out-of-fold variant here (then scikit-learn's ``CalibratedClassifierCV(
-method="sigmoid", ensemble=False)``, the same computation) was as good or slightly better:
-mean squared error to the true probability 0.0036 vs 0.0038 (600 points, logistic
-boundary), 0.0107 vs 0.0111 (200 points). It also makes ``predict`` and ``predict_proba``
-come from one model (libsvm's probabilities come from a separate internal model and can
-disagree with ``predict``), its folds are stratified and seeded from ``random_state``, and
-``SVC(probability=True)`` is deprecated since scikit-learn 1.9. An averaged ensemble of the
-fold models was worse (0.0139 at 200 points) and would need k SVMs per gradient.
-
-Why a hand-written grid search rather than ``GridSearchCV``: each fold is standardised once
-instead of once per setting and the accuracy is computed in numpy, which removes the
-per-fit overhead of pipelines, scorers and input validation (about 4 ms, most of the cost
-on small data: 294 fits on 113 samples took 1.4 s, now 0.5 s); folds, grid and the choice
-(first best in grid order) are the same. The settings that share a gamma share one RBF
-kernel matrix per fold, computed in numpy and given to libsvm precomputed (2.3 times less CPU
-on BALLRUN's searches, same accuracies; see ``_score_settings``). Optionally
-(``search_halving``) the search is a successive halving: the settings are ranked on
-stratified subsets of the training folds and only the best third goes on to more rows (see
-``LearningSettings.search_halving`` for its measurements and why it is not the default).
+Out-of-fold Platt scaling rather than ``SVC(probability=True)`` (libsvm's internal scaling,
+which the authors used): at least as well calibrated, ``predict`` and ``predict_proba`` come
+from one model, and the folds are seeded from ``random_state``. The grid search is
+:mod:`.gridsearch`. Measurements: docs/decisions.md (2026-12-01, "The success classifier").
 """
 
 from __future__ import annotations
-
-import itertools
 
 import numpy as np
 from scipy.optimize import minimize
 from scipy.special import expit, log_expit
 from sklearn.base import BaseEstimator, ClassifierMixin
 from sklearn.model_selection import StratifiedKFold
-from sklearn.pipeline import Pipeline
-from sklearn.preprocessing import StandardScaler
-from sklearn.svm import SVC
 from sklearn.utils import check_random_state
 from sklearn.utils.validation import check_array, check_is_fitted
 
+from .gridsearch import fit_fold, grid_search
 from .parallel import parallel_map
 from .settings import LearningSettings
 
@@ -216,7 +194,7 @@ class SuccessClassifier(ClassifierMixin, BaseEstimator):
         if self.params is None:
             folds = StratifiedKFold(min(self.cv_folds, min_class), shuffle=True,
                                     random_state=seed_cv)
-            self.best_params_, self.search_accuracy_ = _grid_search(
+            self.best_params_, self.search_accuracy_ = grid_search(
                 Z, y, self.C_grid, self.gamma_grid, self.class_weights, folds, self.n_jobs,
                 self.search_halving, self.search_min_train, seed_halving,
             )
@@ -228,7 +206,7 @@ class SuccessClassifier(ClassifierMixin, BaseEstimator):
                                 random_state=seed_cal)
         jobs = [(Z, y, train, test, self.best_params_) for train, test in folds.split(Z, y)]
         jobs.append((Z, y, np.arange(len(y)), None, self.best_params_))
-        *parts, self.pipeline_ = parallel_map(_fit_fold, jobs, self.n_jobs)
+        *parts, self.pipeline_ = parallel_map(fit_fold, jobs, self.n_jobs)
         f_oof = np.empty(len(y))
         for (_, _, _, test, _), f in zip(jobs, parts, strict=False):
             f_oof[test] = f
@@ -333,119 +311,6 @@ class SuccessClassifier(ClassifierMixin, BaseEstimator):
         f, G = self._decision(X, gradient=True)
         p = expit(-(a * f + b))
         return p, (-a * p * (1 - p))[:, None] * G
-
-
-# --- training helpers (module level so that they can be sent to worker processes) ---------
-
-
-def _svm(params) -> SVC:
-    return SVC(kernel="rbf", C=float(params["C"]), gamma=float(params["gamma"]),
-               class_weight=params["class_weight"], cache_size=512)
-
-
-def _fit_fold(Z, y, train, test, params):
-    """Fit scaler and SVM on ``train``; the decision values on ``test``, or the fitted
-    pipeline when ``test`` is None."""
-    model = Pipeline([("scale", StandardScaler()), ("svm", _svm(params))]).fit(Z[train], y[train])
-    return model if test is None else model.decision_function(Z[test])
-
-
-# Largest training part whose RBF kernel the grid search computes in numpy (a float64
-# matrix of 72 MB); larger folds let libsvm compute kernel values as it needs them.
-_PRECOMPUTED_MAX_ROWS = 3000
-
-
-def _score_settings(Z, y, train, test, settings):
-    """Accuracy on ``test`` of an SVM fitted on ``train`` for each setting; the fold is
-    standardised once.
-
-    Settings that share a gamma share one kernel matrix, computed in numpy and given to
-    libsvm as a precomputed kernel: on BALLRUN's recorded searches (967 to 1660 samples, 49
-    settings, 3 folds) this took 8.5 s instead of 19.7 s, with the same 441 accuracies.
-    (libsvm's own RBF kernel computes every value again for each C.)"""
-    scaler = StandardScaler().fit(Z[train])
-    A, B = scaler.transform(Z[train]), scaler.transform(Z[test])
-    ytrain, ytest = y[train], y[test]
-    if len(train) > _PRECOMPUTED_MAX_ROWS:
-        return [float(np.mean((_svm(p).fit(A, ytrain).decision_function(B) > 0) == ytest))
-                for p in settings]
-    norms = (A * A).sum(axis=1)
-    D_train = np.maximum(norms[:, None] + norms[None, :] - 2.0 * (A @ A.T), 0.0)
-    D_test = np.maximum((B * B).sum(axis=1)[:, None] + norms[None, :] - 2.0 * (B @ A.T), 0.0)
-    scores = []
-    gamma = None  # the jobs group settings by gamma: one pair of matrices at a time
-    for p in settings:
-        if float(p["gamma"]) != gamma:
-            gamma = float(p["gamma"])
-            K_train, K_test = np.exp(-gamma * D_train), np.exp(-gamma * D_test)
-        svm = SVC(kernel="precomputed", C=float(p["C"]), class_weight=p["class_weight"],
-                  cache_size=512).fit(K_train, ytrain)
-        f = K_test[:, svm.support_] @ svm.dual_coef_[0] + svm.intercept_[0]
-        scores.append(float(np.mean((f > 0) == ytest)))
-    return scores
-
-
-def _grid_search(Z, y, C_grid, gamma_grid, class_weights, folds, n_jobs, halving=1,
-                 min_train=100, seed=0):
-    """The first setting of the grid (C, then gamma, then class weight) with the best mean
-    accuracy over ``folds``, and that accuracy. Work is split by fold and gamma.
-
-    With ``halving`` = eta > 1, successive halving: every setting is scored on the folds
-    with each training part cut to a stratified random subset of ``eta**-R`` of its rows,
-    the best third (``1 / eta``) of the settings is scored again on ``eta`` times more
-    rows, and so on up to the whole training parts, where the choice is made. ``R`` is the
-    largest number of rungs such that the smallest subsets keep ``min_train`` rows and each
-    rung keeps at least two settings; with ``R = 0`` this is the exhaustive search. The test
-    parts are always whole, so every score is an accuracy on the same points."""
-    splits = list(folds.split(Z, y))
-    grid = [{"C": float(C), "gamma": float(g), "class_weight": w}
-            for C, g, w in itertools.product(C_grid, gamma_grid, class_weights)]
-    n_train = min(len(train) for train, _ in splits)
-    rungs = 0
-    if halving > 1:
-        while (n_train / halving ** (rungs + 1) >= min_train
-               and len(grid) / halving ** (rungs + 1) >= 2):
-            rungs += 1
-    rs = np.random.RandomState(seed)
-    subsets = [_stratified_order(y, train, rs) for train, _ in splits]
-    alive = np.arange(len(grid))
-    for rung in range(rungs + 1):
-        share = float(halving) ** (rung - rungs)
-        scores = _score_grid(Z, y, splits, subsets, share, [grid[i] for i in alive], n_jobs)
-        if rung < rungs:  # keep the best 1/eta, ties in grid order
-            keep = max(2, int(np.ceil(len(alive) / halving)))
-            alive = np.sort(alive[np.argsort(-scores, kind="stable")[:keep]])
-    best = int(np.argmax(scores))
-    return dict(grid[alive[best]]), float(scores[best])
-
-
-def _stratified_order(y, train, rs):
-    """The rows of ``train`` in an order whose every prefix keeps the class proportions
-    (each class shuffled, then the two interleaved by rank)."""
-    parts = [train[y[train] == c] for c in (False, True)]
-    keys = [(np.arange(len(p)) + rs.random_sample(len(p))) / max(len(p), 1) for p in parts]
-    rows = np.concatenate([rs.permutation(p) for p in parts])
-    return rows[np.argsort(np.concatenate(keys), kind="stable")]
-
-
-def _score_grid(Z, y, splits, subsets, share, settings, n_jobs):
-    """(len(settings),) mean accuracy over the folds, each fold trained on the first
-    ``share`` of its ordered training rows (at least 2 per class when the fold has them)."""
-    by_gamma: dict[float, list[int]] = {}
-    for i, p in enumerate(settings):
-        by_gamma.setdefault(p["gamma"], []).append(i)
-    jobs, where = [], []
-    for k, ((_, test), order) in enumerate(zip(splits, subsets, strict=True)):
-        train = order[: max(int(round(share * len(order))), 4)]
-        if share < 1 and len(np.unique(y[train])) < 2:
-            train = order
-        for idx in by_gamma.values():
-            jobs.append((Z, y, train, test, [settings[i] for i in idx]))
-            where.append((k, idx))
-    scores = np.zeros((len(splits), len(settings)))
-    for (k, idx), acc in zip(where, parallel_map(_score_settings, jobs, n_jobs), strict=True):
-        scores[k, idx] = acc
-    return scores.mean(axis=0)
 
 
 def _platt(f: np.ndarray, y: np.ndarray) -> tuple[float, float]:

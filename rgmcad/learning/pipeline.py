@@ -16,7 +16,8 @@ from typing import Any
 
 import numpy as np
 
-from .factorize import EventAnalysis, SPDModel, fit_spd
+from .dimensions import EventAnalysis
+from .factorize import SPDModel, fit_spd
 from .optimize import OptimizationResult, maximize_robustness, placement_tolerance, start_point
 from .oracles import Label, Problem
 from .sampling import explore
