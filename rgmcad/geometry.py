@@ -14,7 +14,6 @@ conversions.
 from __future__ import annotations
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 POSE_KEYS = ("x", "y", "z", "heading", "pitch", "roll")
 """Names of the six pose components, in design-vector order."""
@@ -32,6 +31,12 @@ def rotation_hpr(heading_deg: float, pitch_deg: float, roll_deg: float) -> np.nd
         [sh * cr + ch * sp * sr, ch * cp, sh * sr - ch * sp * cr],
         [-cp * sr, sp, cp * cr],
     ])
+
+
+def rotation_2d(angle_deg: float) -> np.ndarray:
+    """(2, 2) rotation of the plane by ``angle_deg`` degrees, counter-clockwise."""
+    a = np.radians(angle_deg)
+    return np.array([[np.cos(a), -np.sin(a)], [np.sin(a), np.cos(a)]])
 
 
 def pose_matrices(poses6: np.ndarray) -> np.ndarray:
@@ -57,6 +62,8 @@ def pose_matrices(poses6: np.ndarray) -> np.ndarray:
 
 def hpr_of(rotation: np.ndarray) -> np.ndarray:
     """(3,) heading, pitch, roll in degrees of a (3, 3) rotation (inverse of rotation_hpr)."""
+    from scipy.spatial.transform import Rotation  # here: part family files import this module
+
     return Rotation.from_matrix(rotation).as_euler("ZXY", degrees=True)
 
 
@@ -75,6 +82,7 @@ def pose6_of(matrix: np.ndarray) -> np.ndarray:
 
 
 def translation(offset) -> np.ndarray:
+    """(4, 4) transform that moves points by ``offset`` (3,), metres."""
     m = np.eye(4)
     m[:3, 3] = offset
     return m

@@ -4,10 +4,14 @@ from __future__ import annotations
 
 import numpy as np
 
+from rgmcad.parts.store import PartStore
 from rgmcad.scene.bodies import load_parts, make_scene
 from rgmcad.scene.design_space import values_from_mapping
-from rgmcad.scene.scenario import parse_scenario
+from rgmcad.scene.loader import parse_scenario
 from rgmcad.sim.run import simulate
+
+PARTS = PartStore()
+"""One store for the test session: a part is read from disk once."""
 
 
 def tiny(objects: dict, events: dict, *, runs=None, joints=None, duration=2.0, **sim):
@@ -22,13 +26,13 @@ def tiny(objects: dict, events: dict, *, runs=None, joints=None, duration=2.0, *
 
 
 def run(scenario, layout: str = "initial", **kwargs):
-    parts = load_parts(scenario)
+    parts = load_parts(scenario, PARTS)
     values = values_from_mapping(scenario, scenario.layouts[layout])
     return simulate(scenario, values, parts, **kwargs)
 
 
 def scene_of(scenario, values=None):
-    parts = load_parts(scenario)
+    parts = load_parts(scenario, PARTS)
     if values is None:
         values = values_from_mapping(scenario, scenario.layouts["initial"])
     return make_scene(scenario, np.asarray(values, float), parts)

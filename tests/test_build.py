@@ -15,7 +15,9 @@ import trimesh
 
 from rgmcad.errors import ScenarioError
 from rgmcad.parts import build
-from rgmcad.parts.family import ConvexPiece, Family, load_families
+from rgmcad.parts.family import Family, load_families
+from rgmcad.parts.pieces import ConvexPiece
+from rgmcad.parts.store import PartStore
 
 FAMILIES = load_families()
 
@@ -148,21 +150,22 @@ def test_build_parts_builds_once_and_then_reuses(tmp_path):
                  (ball, {"radius": 0.01}),
                  (box, box.params(0.1, 0.02, 0.005))]
     calls = []
-    first = build.build_parts(instances, tmp_path, progress=lambda *a: calls.append(a))
+    store = PartStore(tmp_path)
+    first = build.build_parts(instances, store, progress=lambda *a: calls.append(a))
     assert [c[:2] for c in calls] == [(1, 2), (2, 2)] and not any(c[3] for c in calls)
     assert [c[2] for c in calls] == [p.id for p in first]
     stamp = (tmp_path / first[0].id / "part.json").stat().st_mtime_ns
 
-    build.clear_cache()
+    store.forget()
     calls.clear()
-    again = build.build_parts(instances, tmp_path, progress=lambda *a: calls.append(a))
+    again = build.build_parts(instances, store, progress=lambda *a: calls.append(a))
     assert all(c[3] for c in calls), "second build must come from the cache"
     assert [p.id for p in again] == [p.id for p in first]
     assert (tmp_path / first[0].id / "part.json").stat().st_mtime_ns == stamp
     np.testing.assert_array_equal(again[1].main.vertices, first[1].main.vertices)
 
     calls.clear()
-    forced = build.build_parts(instances[:1], tmp_path, force=True,
+    forced = build.build_parts(instances[:1], store, force=True,
                                progress=lambda *a: calls.append(a))
     assert calls == [(1, 1, first[0].id, False)] and forced[0].id == first[0].id
 
@@ -178,14 +181,26 @@ def test_build_parts_builds_once_and_then_reuses(tmp_path):
 def test_load_part_caches_and_can_refuse_to_build(tmp_path):
     box = FAMILIES["box"]
     params = box.params(0.05, 0.05, 0.05)
+    store = PartStore(tmp_path)
     with pytest.raises(FileNotFoundError):
-        build.load_part(box, params, tmp_path, build_missing=False)
-    part = build.load_part(box, params, tmp_path)
-    assert build.load_part(box, params, tmp_path) is part
-    build.clear_cache()
-    again = build.load_part(box, params, tmp_path, build_missing=False)
+        build.load_part(box, params, store, build_missing=False)
+    part = build.load_part(box, params, store)
+    assert build.load_part(box, params, store) is part
+    assert build.load_part(box, {"length": 0.05, "width": 0.05, "height": 0.05}, store) is part
+    store.forget()
+    again = build.load_part(box, params, store, build_missing=False)
     assert again is not part and again.id == part.id
     np.testing.assert_array_equal(again.main.faces, part.main.faces)
+    assert build.load_part(box, params, tmp_path) is not again, "a folder is a new store"
+
+
+def test_a_forced_rebuild_replaces_the_part_the_store_remembers(tmp_path):
+    box = FAMILIES["box"]
+    store = PartStore(tmp_path)
+    part = build.load_part(box, box.params(0.05, 0.05, 0.05), store)
+    (rebuilt,) = build.build_parts([(box, box.params(0.05, 0.05, 0.05))], store, force=True)
+    assert rebuilt is not part and rebuilt.id == part.id
+    assert build.load_part(box, box.params(0.05, 0.05, 0.05), store) is rebuilt
 
 
 def test_load_part_does_not_import_cadquery(out):

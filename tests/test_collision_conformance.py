@@ -30,17 +30,10 @@ from _support import scene_of, tiny
 from scipy.spatial import ConvexHull
 
 from rgmcad.geometry import invert
-from rgmcad.parts.family import (
-    BoxPiece,
-    ConvexPiece,
-    CylinderPiece,
-    PlanePiece,
-    SpherePiece,
-    load_families,
-    params_dict,
-)
+from rgmcad.parts.family import load_families, params_dict
+from rgmcad.parts.pieces import BoxPiece, ConvexPiece, CylinderPiece, PlanePiece, SpherePiece
 from rgmcad.scene.bodies import Scene
-from rgmcad.scene.scenario import load_scenario
+from rgmcad.scene.loader import load_scenario
 from rgmcad.sim.world import World
 
 FAMILIES = load_families()

@@ -7,7 +7,7 @@ from hypothesis.extra.numpy import arrays
 
 from rgmcad.geometry import pose6_of, pose_matrix
 from rgmcad.scene.design_space import local_poses, values_from_vector, vector_from_values, world_poses
-from rgmcad.scene.scenario import load_scenario
+from rgmcad.scene.loader import load_scenario
 
 BALLRUN = load_scenario("scenarios/ballrun.toml")
 

@@ -7,6 +7,7 @@ on every family, so a new family file is tested by adding it.
 from __future__ import annotations
 
 import dataclasses
+import json
 import subprocess
 import sys
 import textwrap
@@ -20,15 +21,14 @@ from scipy.spatial import ConvexHull
 from rgmcad.errors import ScenarioError
 from rgmcad.geometry import pose_matrix
 from rgmcad.parts import build
-from rgmcad.parts.family import (
-    MAIN,
+from rgmcad.parts.family import MAIN, load_families, params_dict
+from rgmcad.parts.pieces import (
     BoxPiece,
     ConvexPiece,
     CylinderPiece,
     PlanePiece,
     SpherePiece,
-    load_families,
-    params_dict,
+    piece_from_dict,
 )
 
 FAMILIES = load_families()
@@ -340,3 +340,15 @@ def test_lever_hinge_runs_along_the_axle(built):
                                [2 * params.axle_radius, params.axle_length,
                                 2 * params.axle_radius], atol=1e-9)
     assert params.axle_length == pytest.approx(params.width + 0.01)
+
+
+@pytest.mark.parametrize("name", NAMES)
+def test_pieces_survive_their_dict_form(name):
+    family = FAMILIES[name]
+    for pieces in family.collision_pieces(example(family)).values():
+        for piece in pieces:
+            data = piece.to_dict()
+            again = piece_from_dict(json.loads(json.dumps(data)))
+            assert type(again) is type(piece) and again.to_dict() == data
+    with pytest.raises(ValueError, match="allowed: box, sphere"):
+        piece_from_dict({"kind": "cone", "frame": np.eye(4).tolist()})

@@ -28,7 +28,7 @@ from scipy.stats import qmc
 
 import rgmcad.runs.store
 from rgmcad.cli import main as cli_main
-from rgmcad.parts.build import DEFAULT_BUILD_DIR
+from rgmcad.parts.store import DEFAULT_BUILD_DIR
 from rgmcad.runs.executor import PoolExecutor, SerialExecutor, default_workers
 from rgmcad.runs.problem import ScenarioProblem, context
 

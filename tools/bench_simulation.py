@@ -18,7 +18,7 @@ from scipy.stats import qmc
 
 from rgmcad.scene.bodies import load_parts, make_scene
 from rgmcad.scene.design_space import values_from_mapping, values_from_vector
-from rgmcad.scene.scenario import load_scenario, parse_scenario
+from rgmcad.scene.loader import load_scenario, parse_scenario
 from rgmcad.sim.run import simulate
 from rgmcad.sim.validity import check_validity
 

@@ -20,7 +20,7 @@ def run(args) -> int:
     from tqdm import tqdm
 
     from rgmcad.parts.build import build_scenario_parts
-    from rgmcad.scene.scenario import load_scenario
+    from rgmcad.scene.loader import load_scenario
     from rgmcad.shipped import scenario_path, shipped_scenarios
 
     paths = [scenario_path(p) for p in args.scenarios] or list(shipped_scenarios().values())

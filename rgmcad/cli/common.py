@@ -27,7 +27,7 @@ def add_layout_args(p: argparse.ArgumentParser, vector: bool = True) -> None:
 
 def load_scenario_arg(args):
     """The scenario named by ``args.scenario`` (a file, or a shipped scenario's name)."""
-    from rgmcad.scene.scenario import load_scenario
+    from rgmcad.scene.loader import load_scenario
 
     return load_scenario(args.scenario)
 

@@ -61,7 +61,7 @@ def _out(text: str = "") -> None:
 
 
 def _scenario(args):
-    from rgmcad.scene.scenario import load_scenario
+    from rgmcad.scene.loader import load_scenario
 
     return load_scenario(args.scenario)
 

@@ -22,101 +22,29 @@ import inspect
 import sys
 import typing
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 
-import numpy as np
-
 from rgmcad.errors import ScenarioError
+from rgmcad.parts.pieces import (
+    BoxPiece,
+    ConvexPiece,
+    CylinderPiece,
+    Piece,
+    PlanePiece,
+    SpherePiece,
+)
 from rgmcad.shipped import shipped_dir
+
+# Family files import the piece types from here: their source text is part of every build id
+# (:func:`family_digest`), so moving that import would rename every built part.
+__all__ = [
+    "MAIN", "Family", "Hinge", "load_families", "family_digest", "params_dict", "DEFAULT_PARTS_DIR",
+    "BoxPiece", "ConvexPiece", "CylinderPiece", "Piece", "PlanePiece", "SpherePiece",
+]
 
 MAIN = ""
 """Key of a part's main body."""
-
-
-# --- collision pieces -------------------------------------------------------------------------
-# Each piece is convex and sits at ``frame``, a (4, 4) transform in the part's frame.
-
-
-def _identity() -> np.ndarray:
-    return np.eye(4)
-
-
-@dataclass(frozen=True, eq=False)
-class BoxPiece:
-    """A box of full side lengths ``size`` (3,) in metres, centred on its frame."""
-
-    size: tuple[float, float, float]
-    frame: np.ndarray = field(default_factory=_identity)
-
-
-@dataclass(frozen=True, eq=False)
-class SpherePiece:
-    radius: float
-    frame: np.ndarray = field(default_factory=_identity)
-
-
-@dataclass(frozen=True, eq=False)
-class CylinderPiece:
-    """A cylinder along its frame's Z axis, centred on its frame."""
-
-    radius: float
-    height: float
-    frame: np.ndarray = field(default_factory=_identity)
-
-
-@dataclass(frozen=True, eq=False)
-class ConvexPiece:
-    """The convex hull of ``vertices`` (n, 3), given in the piece's frame."""
-
-    vertices: np.ndarray
-    frame: np.ndarray = field(default_factory=_identity)
-
-
-@dataclass(frozen=True, eq=False)
-class PlanePiece:
-    """The infinite half-space z <= 0 of its frame (its surface has normal +Z)."""
-
-    frame: np.ndarray = field(default_factory=_identity)
-
-
-Piece = BoxPiece | SpherePiece | CylinderPiece | ConvexPiece | PlanePiece
-
-
-def piece_to_dict(piece: Piece) -> dict:
-    kind = {
-        BoxPiece: "box",
-        SpherePiece: "sphere",
-        CylinderPiece: "cylinder",
-        ConvexPiece: "convex",
-        PlanePiece: "plane",
-    }[type(piece)]
-    out: dict = {"kind": kind, "frame": np.asarray(piece.frame, float).tolist()}
-    if isinstance(piece, BoxPiece):
-        out["size"] = [float(s) for s in piece.size]
-    elif isinstance(piece, SpherePiece):
-        out["radius"] = float(piece.radius)
-    elif isinstance(piece, CylinderPiece):
-        out["radius"], out["height"] = float(piece.radius), float(piece.height)
-    elif isinstance(piece, ConvexPiece):
-        out["vertices"] = np.asarray(piece.vertices, float).tolist()
-    return out
-
-
-def piece_from_dict(data: Mapping) -> Piece:
-    frame = np.asarray(data["frame"], float)
-    kind = data["kind"]
-    if kind == "box":
-        return BoxPiece(tuple(data["size"]), frame)
-    if kind == "sphere":
-        return SpherePiece(data["radius"], frame)
-    if kind == "cylinder":
-        return CylinderPiece(data["radius"], data["height"], frame)
-    if kind == "convex":
-        return ConvexPiece(np.asarray(data["vertices"], float), frame)
-    if kind == "plane":
-        return PlanePiece(frame)
-    raise ValueError(f"unknown collision piece kind {kind!r}")
 
 
 # --- joints a part brings ---------------------------------------------------------------------
@@ -167,9 +95,6 @@ class Family:
     infinite: bool = False
     description: str = ""
     source: Path | None = None
-
-    def param_names(self) -> tuple[str, ...]:
-        return tuple(f.name for f in dataclasses.fields(self.params))
 
     def make_params(self, values: Mapping[str, typing.Any], *, where: str = "", key: str = ""):
         """Typed parameters from a mapping read from a file; bad input raises ScenarioError."""
@@ -249,35 +174,45 @@ DEFAULT_PARTS_DIR = shipped_dir("parts")
 
 
 def load_families(parts_dir: Path | None = None) -> dict[str, Family]:
-    """Import every ``*.py`` in ``parts_dir`` and return ``{name: Family}``.
+    """A fresh registry ``{name: Family}`` of every ``*.py`` in ``parts_dir``.
 
     Each file must define ``FAMILY``; a file without it, or two families with one name, is an
-    error naming the file.
+    error naming the file. A file is imported once per process, like any module, so every
+    registry of one folder holds the same families and parameter classes (parameters read
+    through one registry stay valid, and picklable, after another is loaded).
     """
     parts_dir = Path(parts_dir or DEFAULT_PARTS_DIR)
-    cached = _REGISTRY_CACHE.get(parts_dir)
-    if cached is not None:
-        return cached
     families: dict[str, Family] = {}
     for path in sorted(parts_dir.glob("*.py")):
         if path.name.startswith("_"):
             continue
-        module_name = f"rgmcad_parts_{path.stem}_{_digest(str(path))[:8]}"
-        spec = importlib.util.spec_from_file_location(module_name, path)
-        module = importlib.util.module_from_spec(spec)
-        sys.modules[module_name] = module  # dataclasses need the module registered
-        spec.loader.exec_module(module)
-        family = getattr(module, "FAMILY", None)
-        if not isinstance(family, Family):
-            raise ScenarioError(str(path), "FAMILY", "a part file must define FAMILY = Family(...)")
+        family = _import_family(path)
         if family.name in families:
             raise ScenarioError(str(path), "FAMILY.name", f"family {family.name!r} defined twice")
-        families[family.name] = dataclasses.replace(family, source=path)
-    _REGISTRY_CACHE[parts_dir] = families
+        families[family.name] = family
     return families
 
 
-_REGISTRY_CACHE: dict[Path, dict[str, Family]] = {}
+def _import_family(path: Path) -> Family:
+    """The ``FAMILY`` of a family file, its ``source`` filled in; imported on first use."""
+    module_name = f"rgmcad_parts_{path.stem}_{_digest(str(path))[:8]}"
+    module = sys.modules.get(module_name)
+    if module is None:
+        spec = importlib.util.spec_from_file_location(module_name, path)
+        module = importlib.util.module_from_spec(spec)
+        sys.modules[module_name] = module  # dataclasses need the module registered
+        try:
+            spec.loader.exec_module(module)
+        except BaseException:
+            del sys.modules[module_name]
+            raise
+        family = getattr(module, "FAMILY", None)
+        if isinstance(family, Family):
+            module.FAMILY = dataclasses.replace(family, source=path)
+    family = getattr(module, "FAMILY", None)
+    if not isinstance(family, Family):
+        raise ScenarioError(str(path), "FAMILY", "a part file must define FAMILY = Family(...)")
+    return family
 
 
 def family_digest(family: Family) -> str:

@@ -9,15 +9,15 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import dataclass
-from pathlib import Path
 
 import numpy as np
 
-from rgmcad.geometry import invert, transform_points
-from rgmcad.parts.build import DEFAULT_BUILD_DIR, BuiltBody, BuiltPart, load_part
+from rgmcad.geometry import transform_points
+from rgmcad.parts.build import Store, load_part
 from rgmcad.parts.family import MAIN
+from rgmcad.parts.store import DEFAULT_BUILD_DIR, BuiltBody, BuiltPart, as_store
 from rgmcad.scene.design_space import world_poses
-from rgmcad.scene.scenario import FRAME, Physical, Scenario
+from rgmcad.scene.model import FRAME, Physical, Scenario
 
 
 @dataclass(frozen=True, eq=False)
@@ -78,12 +78,15 @@ class Scene:
         return pairs
 
 
-def load_parts(scenario: Scenario, build_dir: Path = DEFAULT_BUILD_DIR) -> dict[str, BuiltPart]:
-    """The built part of every object that is a part, keyed by object name (shared instances)."""
-    out = {}
-    for obj in scenario.body_objects():
-        out[obj.name] = load_part(scenario.family(obj), obj.params, build_dir)
-    return out
+def load_parts(scenario: Scenario, build_dir: Store = DEFAULT_BUILD_DIR) -> dict[str, BuiltPart]:
+    """The built part of every object that is a part, keyed by object name, built if missing.
+
+    ``build_dir`` is a :class:`~rgmcad.parts.store.PartStore` or a folder (a new store): objects
+    of one part share one instance, and so do all the scenarios loaded through one store.
+    """
+    store = as_store(build_dir)
+    return {obj.name: load_part(scenario.family(obj), obj.params, store)
+            for obj in scenario.body_objects()}
 
 
 def make_scene(scenario: Scenario, values, parts: Mapping[str, BuiltPart]) -> Scene:
@@ -149,8 +152,3 @@ def _weld_groups(scenario: Scenario) -> tuple[tuple[str, ...], ...]:
         if name not in groups[root]:
             groups[root].append(name)
     return tuple(tuple(g) for g in groups.values())
-
-
-def relative_pose(scene: Scene, body: str, reference: str) -> np.ndarray:
-    """(4, 4) pose of ``body`` in the frame of ``reference`` at the start."""
-    return invert(scene.bodies[reference].pose) @ scene.bodies[body].pose

@@ -12,8 +12,8 @@ from collections.abc import Mapping
 
 import numpy as np
 
-from rgmcad.geometry import POSE_KEYS, pose_matrices, pose_matrix
-from rgmcad.scene.scenario import Scenario
+from rgmcad.geometry import POSE_KEYS, pose_matrices
+from rgmcad.scene.model import Scenario
 
 
 def bounds(scenario: Scenario) -> tuple[np.ndarray, np.ndarray]:
@@ -54,24 +54,18 @@ def local_poses(scenario: Scenario, values) -> dict[str, tuple[float, ...]]:
 
 
 def world_poses(scenario: Scenario, values) -> dict[str, np.ndarray]:
-    """(4, 4) world transform of every object (frames included) for real ``values``."""
-    local = {k: pose_matrix(p) for k, p in local_poses(scenario, values).items()}
-    world: dict[str, np.ndarray] = {}
-
-    def resolve(name):
-        if name not in world:
-            parent = scenario.objects[name].parent
-            world[name] = local[name] if parent is None else resolve(parent) @ local[name]
-        return world[name]
-
-    for name in scenario.objects:
-        resolve(name)
-    return world
+    """(4, 4) world transform of every object (frames included) for real ``values`` (d,):
+    :func:`world_poses_many` of one layout (bit for bit what it gives that layout among
+    many, so validity and simulation see the same poses)."""
+    values = np.asarray(values, float)
+    if values.shape != (scenario.dimension,):
+        raise ValueError(f"expected {scenario.dimension} values, got {values.shape}")
+    return {name: poses[0] for name, poses in world_poses_many(scenario, values[None]).items()}
 
 
 def world_poses_many(scenario: Scenario, values) -> dict[str, np.ndarray]:
-    """(n, 4, 4) world transforms of every object for n layouts of real ``values`` (n, d):
-    :func:`world_poses` for many layouts at once."""
+    """(n, 4, 4) world transforms of every object (frames included) for n layouts of real
+    ``values`` (n, d); children compose their parent-relative pose onto their parent's."""
     values = np.atleast_2d(np.asarray(values, float))
     local6 = {name: np.repeat(np.asarray(obj.pose, float)[None], len(values), axis=0)
               for name, obj in scenario.objects.items()}

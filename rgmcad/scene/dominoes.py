@@ -13,12 +13,12 @@ from __future__ import annotations
 
 import numpy as np
 
+from rgmcad.geometry import rotation_2d
+
 
 def _place(points: np.ndarray, headings: np.ndarray, origin, angle_deg: float) -> np.ndarray:
     """Rotate (n, 2) points and headings by ``angle_deg`` and move them to ``origin``."""
-    a = np.radians(angle_deg)
-    rot = np.array([[np.cos(a), -np.sin(a)], [np.sin(a), np.cos(a)]])
-    xy = points @ rot.T + np.asarray(origin, float)
+    xy = points @ rotation_2d(angle_deg).T + np.asarray(origin, float)
     return np.column_stack([xy, headings + angle_deg])
 
 
