@@ -8,8 +8,7 @@ bottom plate, the front and back walls (full length) and the left and right wall
 
 from dataclasses import dataclass
 
-import numpy as np
-
+from rgmcad.geometry import translation
 from rgmcad.parts.family import BoxPiece, Family
 
 
@@ -67,14 +66,7 @@ def build(p: Params):
 
 
 def collision(p: Params):
-    return [BoxPiece(size, _at(centre)) for size, centre in _boxes(p)]
-
-
-def _at(centre) -> np.ndarray:
-    """(4, 4) frame translated to ``centre`` (numpy only: scipy is slow to import)."""
-    frame = np.eye(4)
-    frame[:3, 3] = centre
-    return frame
+    return [BoxPiece(size, translation(centre)) for size, centre in _boxes(p)]
 
 
 def volume(p: Params) -> float:

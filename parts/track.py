@@ -8,8 +8,7 @@ bounding box and the two side walls are ``wall`` thick and full height, so the g
 
 from dataclasses import dataclass
 
-import numpy as np
-
+from rgmcad.geometry import translation
 from rgmcad.parts.family import BoxPiece, Family
 
 
@@ -63,14 +62,7 @@ def build(p: Params):
 
 
 def collision(p: Params):
-    return [BoxPiece(size, _at(centre)) for size, centre in _boxes(p)]
-
-
-def _at(centre) -> np.ndarray:
-    """(4, 4) frame translated to ``centre`` (numpy only: scipy is slow to import)."""
-    frame = np.eye(4)
-    frame[:3, 3] = centre
-    return frame
+    return [BoxPiece(size, translation(centre)) for size, centre in _boxes(p)]
 
 
 FAMILY = Family(
