@@ -13,7 +13,7 @@ from PIL import Image
 from rgmcad.cli import main
 from rgmcad.scene.bodies import load_parts, make_scene
 from rgmcad.scene.layout_files import resolve_layout
-from rgmcad.scene.scenario import load_scenario
+from rgmcad.scene.loader import load_scenario
 
 DPI = 300
 KEYS = {"pdf", "svg", "plane", "paper", "orientation", "sheets", "parts"}
@@ -125,6 +125,7 @@ def test_verify_print_on_a_rasterised_sheet(made, name, tmp_path, capsys):
     assert {"sheet", "scale_error_percent", "scale", "method", "message"} <= set(check)
     assert check["sheet"] == out["sheets"][-1]
     assert abs(check["scale_error_percent"]) < 0.3 and check["method"] == "dpi"
+    assert check["ok"] is True
     first = _raster(out["pdf"], 0, tmp_path / "map.png")
     assert main(["verify-print", first]) == 0
     text = capsys.readouterr().out

@@ -11,7 +11,8 @@ from PIL import Image
 
 from rgmcad.errors import PrintCheckError
 from rgmcad.printing.check import verify_print
-from rgmcad.printing.template import BasePlane, PlacedPart, make_template
+from rgmcad.printing.inputs import BasePlane, PlacedPart
+from rgmcad.printing.template import make_template
 
 DPI = 300
 

@@ -14,14 +14,11 @@ import trimesh
 from shapely.affinity import rotate, translate
 from shapely.geometry import Point, Polygon
 
-from rgmcad.printing.template import (
-    BasePlane,
-    PlacedPart,
-    grid_size,
-    make_template,
-    resolve_plane,
-    sheet_marks,
-)
+from rgmcad.printing.inputs import BasePlane, PlacedPart
+from rgmcad.printing.plane import resolve_plane
+from rgmcad.printing.sheets import sheet_marks
+from rgmcad.printing.template import make_template
+from rgmcad.printing.tiling import grid_size
 
 DPI = 300
 PX_PER_MM = DPI / 25.4
@@ -564,6 +561,11 @@ def test_long_parts_list_continues_and_limits_are_explained(tmp_path):
     assert r.n_pages > 1 + len(r.sheets)  # the parts list runs over onto another page
     doc = pdfium.PdfDocument(str(r.pdf))
     text = "".join(doc[i].get_textpage().get_text_range() for i in range(r.n_pages - len(r.sheets)))
+    # sheets are numbered after the continuation pages, and say so on their page
+    assert [s.page for s in r.sheets] == list(range(r.n_pages - len(r.sheets) + 1, r.n_pages + 1))
+    for s in r.sheets:
+        page_text = doc[s.page - 1].get_textpage().get_text_range()
+        assert f"sheet {s.label} of" in page_text and f"page {s.page};" in page_text
     doc.close()
     assert all(f"{i + 1}. run[{i}]:" in text for i in range(36))
     far = [parts[0], _part(trimesh.creation.box([0.02, 0.01, 0.04]), _pose(offset=(6.0, 0, 0.02)),

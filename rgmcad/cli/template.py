@@ -1,6 +1,98 @@
-"""``rgmcad template``: a printable 1:1 tiled assembly template of a layout."""
+"""``rgmcad template``: a printable 1:1 tiled assembly template of a layout.
 
-from rgmcad.cli.printing import cmd_template as run
-from rgmcad.cli.printing import configure_template as configure
+``rgmcad template SCENARIO --layout NAME|FILE --out DIR`` poses a layout and writes
+``DIR/template.pdf`` (tiled, tagged sheets) and ``DIR/template.svg`` (1:1, millimetres) with
+:func:`rgmcad.printing.template.scene_template`; placement order and tolerance notes are
+described in :mod:`rgmcad.printing.inputs`.
+"""
 
-__all__ = ["configure", "run"]
+from __future__ import annotations
+
+import json
+import time
+from pathlib import Path
+
+from rgmcad.cli.common import (
+    add_layout_args,
+    add_scenario_arg,
+    load_parts_of,
+    load_scenario_arg,
+    say,
+)
+from rgmcad.errors import UsageError
+
+PAPER_CHOICES = ("a4", "letter", "a3", "auto")
+PLANE_CHOICES = ("floor", "board", "xy", "xz", "yz")
+DEFAULT_PAPER = "a4"
+DEFAULT_OVERLAP_MM = 12.0
+
+
+def configure(p) -> None:
+    add_scenario_arg(p)
+    add_layout_args(p, vector=False)
+    p.epilog = ("A layout file may also carry `tolerances` (as the optimiser writes them); "
+                "they are printed beside the parts.")
+    p.add_argument("--out", required=True, metavar="DIR",
+                   help="folder for template.pdf and template.svg (created if missing)")
+    p.add_argument("--plane", choices=PLANE_CHOICES, default=None,
+                   help="plane to draw on: the scenario's horizontal (floor) or vertical "
+                   "(board) base plane, or an axis plane; default: the one the parts stand on")
+    p.add_argument("--paper", choices=PAPER_CHOICES, default=DEFAULT_PAPER,
+                   help=f"paper size (default: {DEFAULT_PAPER}); auto picks the size needing "
+                   "the fewest sheets, A3 included; orientation is always chosen for the "
+                   "fewest sheets")
+    p.add_argument("--overlap", type=float, default=DEFAULT_OVERLAP_MM, metavar="MM",
+                   help=f"width of the strips neighbouring sheets share, mm "
+                   f"(default: {DEFAULT_OVERLAP_MM:g})")
+    p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
+
+
+def run(args) -> int:
+    from rgmcad.printing.template import scene_template
+    from rgmcad.scene.bodies import make_scene
+    from rgmcad.scene.layout_files import read_tolerances, resolve_layout
+
+    t0 = time.perf_counter()
+    scenario = load_scenario_arg(args)
+    name, values = resolve_layout(scenario, args.layout, None)
+    tolerances = {}
+    if args.layout and args.layout not in scenario.layouts:  # a layout file
+        tolerances = read_tolerances(scenario, Path(args.layout))
+    scene = make_scene(scenario, values, load_parts_of(scenario, args))
+    paper = None if args.paper == "auto" else args.paper
+    try:
+        result = scene_template(scenario, scene, Path(args.out), tolerances=tolerances,
+                                plane=args.plane, paper=paper, overlap_mm=args.overlap,
+                                title=f"{scenario.name}, layout {name}")
+    except OSError as exc:
+        raise UsageError(str(args.out), "--out", f"cannot write the template ({exc})") \
+            from None
+    wall = time.perf_counter() - t0
+    cols, rows = result.grid
+    if args.json:
+        say(json.dumps({
+            "scenario": scenario.name, "layout": name,
+            "pdf": str(result.pdf), "svg": str(result.svg),
+            "plane": result.plane, "paper": result.paper, "orientation": result.orientation,
+            "grid": [cols, rows], "sheets": list(result.sheet_labels), "pages": result.n_pages,
+            "overlap_mm": result.overlap_mm,
+            "parts": [{"name": p.name, "order": p.order,
+                       "centroid_world": [float(v) for v in p.centroid_world],
+                       "tolerances": list(p.tolerances)} for p in result.parts],
+            "wall_time": wall,
+        }))
+        return 0
+    base = f" ({result.frame.base})" if result.frame.base not in ("", result.plane) else ""
+    say(f"{scenario.name}, layout {name}: {len(result.parts)} parts drawn on the "
+        f"{result.plane} plane{base}")
+    say(f"{result.paper} {result.orientation}: {cols} x {rows} sheets "
+        f"({', '.join(result.sheet_labels)}) and the assembly map, {result.n_pages} pages, "
+        f"{result.overlap_mm:g} mm overlap")
+    if tolerances:
+        say(f"tolerances from {args.layout}: {len(tolerances)} parameters")
+    say(f"  {result.pdf}")
+    say(f"  {result.svg}  (1:1, millimetres)")
+    say("print at 100 % / actual size; check a printed sheet with: "
+        "rgmcad verify-print PHOTO.jpg")
+    say(f"done in {wall:.1f} s")
+    return 0

@@ -1,6 +1,6 @@
 """Check the scale of a printed template sheet from a scan or a photo of it.
 
-The sheet's AprilTag marks (see :mod:`rgmcad.printing.template` for their ids and positions) tell
+The sheet's AprilTag marks (see :mod:`rgmcad.printing.sheets` for their ids and positions) tell
 which sheet it is and where its marks were meant to be, in millimetres. A picture has no
 scale of its own, so the marks' spacing is compared against a reference of known size:
 
@@ -28,12 +28,7 @@ from pathlib import Path
 import numpy as np
 
 from rgmcad.errors import PrintCheckError
-from rgmcad.printing.template import (
-    PAPERS_MM,
-    decode_tag_id,
-    mark_corners_portrait,
-    slot_label,
-)
+from rgmcad.printing.sheets import PAPERS_MM, decode_tag_id, mark_corners_portrait, slot_label
 
 log = logging.getLogger(__name__)
 log.addHandler(logging.NullHandler())
@@ -83,6 +78,11 @@ class PrintCheck:
     message: str
     scale_xy: tuple[float, float] = (1.0, 1.0)
     residual_mm: float = 0.0
+
+    @property
+    def ok(self) -> bool:
+        """Whether the scale is within ``TOLERANCE_PERCENT`` of 100 %."""
+        return abs(self.scale_error_percent) <= TOLERANCE_PERCENT
 
 
 # --- reading and detecting ------------------------------------------------------------------------
@@ -153,8 +153,7 @@ def detect_marks(grey: np.ndarray) -> dict[int, np.ndarray]:
     """Template marks in a grey image.
 
     Marks are found on a reduced copy, then each is refined (AprilTag corner refinement)
-    in a crop of the full image around it: accurate (about 0.1-0.3 px) and fast on large,
-    noisy photos.
+    in a crop of the full image around it: accurate (about 0.1-0.3 px) and fast on large, noisy photos.
 
     Returns
     -------
@@ -319,14 +318,12 @@ def _sheet_edge_scale(grey: np.ndarray, h_mm_to_px: np.ndarray, paper: str):
 
     w_mm, h_mm = PAPERS_MM[paper]
     # rectified resolution: about the picture's own, within [4, 10] px/mm
-    centre = np.array([[[w_mm / 2, h_mm / 2], [w_mm / 2 + 1.0, h_mm / 2],
-                        [w_mm / 2, h_mm / 2 + 1.0]]])
+    centre = np.array([[[w_mm / 2, h_mm / 2], [w_mm / 2 + 1.0, h_mm / 2], [w_mm / 2, h_mm / 2 + 1.0]]])
     c = cv2.perspectiveTransform(centre, h_mm_to_px)[0]
     du, dv = c[1] - c[0], c[2] - c[0]
     native = math.sqrt(abs(du[0] * dv[1] - du[1] * dv[0]))
     k = float(np.clip(native, 4.0, 10.0))
-    size = (int(math.ceil((w_mm + 2 * _BORDER_MM) * k)),
-            int(math.ceil((h_mm + 2 * _BORDER_MM) * k)))
+    size = (int(math.ceil((w_mm + 2 * _BORDER_MM) * k)), int(math.ceil((h_mm + 2 * _BORDER_MM) * k)))
     to_rect = np.array([[k, 0, _BORDER_MM * k], [0, k, _BORDER_MM * k], [0, 0, 1.0]])
     m = to_rect @ np.linalg.inv(h_mm_to_px)
     img = cv2.warpPerspective(grey, m, size, flags=cv2.INTER_LINEAR,
@@ -336,11 +333,9 @@ def _sheet_edge_scale(grey: np.ndarray, h_mm_to_px: np.ndarray, paper: str):
                                 borderValue=0) > 0
     inner, outer = 8.0, -_BORDER_MM + 2.0
     left = _edge_positions(img, valid, k, 0.25 * h_mm, 0.75 * h_mm, True, inner, outer)
-    right = _edge_positions(img, valid, k, 0.25 * h_mm, 0.75 * h_mm, True, w_mm - inner,
-                            w_mm - outer)
+    right = _edge_positions(img, valid, k, 0.25 * h_mm, 0.75 * h_mm, True, w_mm - inner, w_mm - outer)
     top = _edge_positions(img, valid, k, 0.25 * w_mm, 0.75 * w_mm, False, inner, outer)
-    bottom = _edge_positions(img, valid, k, 0.25 * w_mm, 0.75 * w_mm, False, h_mm - inner,
-                             h_mm - outer)
+    bottom = _edge_positions(img, valid, k, 0.25 * w_mm, 0.75 * w_mm, False, h_mm - inner, h_mm - outer)
     lines = [_robust_line(p) for p in (left, right, top, bottom)]
     log.debug("edge profiles: %s", [len(p) for p in (left, right, top, bottom)])
     scales = []
@@ -380,7 +375,7 @@ def verify_print(image_path) -> PrintCheck:
 
     Raises
     ------
-    ScenarioError
+    PrintCheckError
         The image cannot be read, has no template marks, or its scale cannot be measured.
     """
     path = Path(image_path)
@@ -388,7 +383,7 @@ def verify_print(image_path) -> PrintCheck:
     marks = detect_marks(grey)
     if not marks:
         raise PrintCheckError(path, "", "no template marks (AprilTag 36h11) found: scan or "
-                            "photograph the whole sheet, flat and in focus")
+                              "photograph the whole sheet, flat and in focus")
     slots: dict[int, list[int]] = {}
     for i in marks:
         slots.setdefault(decode_tag_id(i)[0], []).append(i)
@@ -422,7 +417,7 @@ def verify_print(image_path) -> PrintCheck:
     # (b) the paper's edges
     if len(marks) < 2:
         raise PrintCheckError(path, "", f"only one mark found ({ids[0]}): photograph the whole "
-                            "sheet on a darker background, or scan it (recording its dpi)")
+                              "sheet on a darker background, or scan it (recording its dpi)")
     ranked = sorted(fits, key=lambda p: fits[p][3])
     best, second = fits[ranked[0]][3], fits[ranked[1]][3]
     clear = len(marks) >= 3 and best < 0.5 * second
@@ -437,7 +432,7 @@ def verify_print(image_path) -> PrintCheck:
         results.append((spread + (0.0 if paper == ranked[0] else 1e-4), paper, sw, sh))
     if not results:
         raise PrintCheckError(path, "", "cannot find the sheet's edges: photograph the whole "
-                            "sheet flat on a darker background, or scan it (recording its dpi)")
+                              "sheet flat on a darker background, or scan it (recording its dpi)")
     _, paper, sw, sh = min(results)
     found = [v for v in (sw, sh) if v is not None]
     scale = float(np.mean(found))
