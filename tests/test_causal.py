@@ -1,8 +1,10 @@
 """Causal-graph semantics with scripted conditions: joins, timeouts, resolution."""
 
 from rgmcad.scene.eventspec import Negation
-from rgmcad.scene.scenario import EventSpec
-from rgmcad.sim.causal import ASLEEP, AWAKE, FAILURE, SUCCESS, CausalGraph
+from rgmcad.scene.model import EventSpec
+from rgmcad.sim.causal import CausalGraph, EventState
+
+ASLEEP, AWAKE, SUCCESS, FAILURE = EventState
 
 DT = 0.002
 

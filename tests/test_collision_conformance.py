@@ -237,9 +237,9 @@ def check_probes(world: World, hull_boxes: bool = False) -> None:
 
 def check(scene: Scene, settings, shapes, hull_boxes: bool = False):
     shapes.clear()
-    world = World(scene, settings)
-    check_probes(world, hull_boxes)
-    check_counts(world, shapes)
+    with World(scene, settings) as world:
+        check_probes(world, hull_boxes)
+        check_counts(world, shapes)
 
 
 # --- every part family --------------------------------------------------------------------------

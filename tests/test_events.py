@@ -186,26 +186,26 @@ def test_point_velocity_is_the_rate_of_change_of_the_point_position():
                  "mass": 0.05, "pose": {"x": 0.5, "z": 0.06, "roll": 20, "heading": 30}},
     }
     scenario = tiny(objects, {"e": {"type": "rising", "body": "lever"}})
-    world = World(scene_of(scenario), scenario.settings)
-    dt = scenario.settings.timestep
-    points = {"lever": (0.1, 0.01, 0.0025), "slab": (0.005, 0.02, 0.05)}
-    readers = {b: (point_velocity_reader(world, b, p), world.point_reader(b, p))
-               for b, p in points.items()}
-    checked = 0
-    for i in range(1, 61):
-        before = {b: (np.array(v()), np.array(p())) for b, (v, p) in readers.items()}
-        world.step()
-        if i % 20:
-            continue
-        for body, (velocity, position) in readers.items():
-            v0, p0 = before[body]
-            v1 = np.array(velocity())
-            moved = (np.array(position()) - p0) / dt
-            # the engine moves the point with about the velocity before or after the step
-            error = min(np.linalg.norm(moved - v0), np.linalg.norm(moved - v1))
-            assert error <= 0.02 * np.linalg.norm(v1) + 1e-3, (body, i, moved, v0, v1)
-            assert np.linalg.norm(v1) > 0.05  # moving: the check means something
-            checked += 1
+    with World(scene_of(scenario), scenario.settings) as world:
+        dt = scenario.settings.timestep
+        points = {"lever": (0.1, 0.01, 0.0025), "slab": (0.005, 0.02, 0.05)}
+        readers = {b: (point_velocity_reader(world, b, p), world.point_reader(b, p))
+                   for b, p in points.items()}
+        checked = 0
+        for i in range(1, 61):
+            before = {b: (np.array(v()), np.array(p())) for b, (v, p) in readers.items()}
+            world.step()
+            if i % 20:
+                continue
+            for body, (velocity, position) in readers.items():
+                v0, p0 = before[body]
+                v1 = np.array(velocity())
+                moved = (np.array(position()) - p0) / dt
+                # the engine moves the point with about the velocity before or after the step
+                error = min(np.linalg.norm(moved - v0), np.linalg.norm(moved - v1))
+                assert error <= 0.02 * np.linalg.norm(v1) + 1e-3, (body, i, moved, v0, v1)
+                assert np.linalg.norm(v1) > 0.05  # moving: the check means something
+                checked += 1
     assert checked == 6
 
 

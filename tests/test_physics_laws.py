@@ -4,11 +4,11 @@ and a ball thrown into a cup stays in it."""
 import math
 
 import numpy as np
-import pybullet as pb
 import pytest
 from _support import scene_of, tiny
 
 from rgmcad.geometry import invert
+from rgmcad.sim.engine import Engine
 from rgmcad.sim.world import World
 
 G = 9.81
@@ -19,15 +19,16 @@ def test_free_fall_follows_half_g_t_squared():
     sc = tiny({"floor": {"part": "plane", "pose": {"z": -10}},
                "ball": {"part": "ball", "params": {"radius": 0.01}, "mass": 0.01,
                         "pose": {"z": 1.0}}}, NEVER)
-    world = World(scene_of(sc), sc.settings)
-    steps = 250
-    for _ in range(steps):
-        world.step()
-    t = steps * sc.settings.timestep
-    z = world.pose("ball")[2, 3]
+    with World(scene_of(sc), sc.settings) as world:
+        steps = 250
+        for _ in range(steps):
+            world.step()
+        t = steps * sc.settings.timestep
+        z = world.pose("ball")[2, 3]
+        vz = world.velocity("ball")[0][2]
     # semi-implicit Euler lands within one step's worth of the exact parabola
     assert z == pytest.approx(1.0 - 0.5 * G * t**2, abs=G * t * sc.settings.timestep)
-    assert world.velocity("ball")[0][2] == pytest.approx(-G * t, rel=1e-6)
+    assert vz == pytest.approx(-G * t, rel=1e-6)
 
 
 @pytest.mark.parametrize("slope_deg", [10.0, 20.0])
@@ -40,14 +41,14 @@ def test_solid_ball_rolls_down_incline_at_five_sevenths_g_sin(slope_deg):
                "ball": {"part": "ball", "params": {"radius": r}, "mass": 0.01, "friction": 1.0,
                         "parent": "ramp", "pose": {"x": 0.5, "z": 0.01 + r}}},
               {"e": {"type": "contact", "first": "ball", "second": "ramp"}})
-    world = World(scene_of(sc), sc.settings)
-    for _ in range(50):  # settle contact
-        world.step()
-    v0 = np.linalg.norm(world.velocity("ball")[0])
-    steps = 200
-    for _ in range(steps):
-        world.step()
-    v1 = np.linalg.norm(world.velocity("ball")[0])
+    with World(scene_of(sc), sc.settings) as world:
+        for _ in range(50):  # settle contact
+            world.step()
+        v0 = np.linalg.norm(world.velocity("ball")[0])
+        steps = 200
+        for _ in range(steps):
+            world.step()
+        v1 = np.linalg.norm(world.velocity("ball")[0])
     accel = (v1 - v0) / (steps * sc.settings.timestep)
     assert accel == pytest.approx(5 / 7 * G * math.sin(math.radians(slope_deg)), rel=0.03)
 
@@ -59,10 +60,10 @@ def _domino_falls(tilt_deg):
               runs={"run": {"domino": {"thickness": t, "width": 0.02, "height": h},
                             "path": {"kind": "line", "count": 1, "length": 0.0},
                             "tilt": tilt_deg, "mass": 0.003, "friction": 1.0}})
-    world = World(scene_of(sc), sc.settings)
-    for _ in range(600):
-        world.step()
-    up = world.pose("run[0]")[:3, 2]
+    with World(scene_of(sc), sc.settings) as world:
+        for _ in range(600):
+            world.step()
+        up = world.pose("run[0]")[:3, 2]
     return math.degrees(math.acos(np.clip(up[2], -1, 1))) > 45
 
 
@@ -88,14 +89,16 @@ def test_ball_thrown_into_a_goblet_stays_inside_whichever_wall_it_strikes(tilt_d
               {"e": {"type": "inclusion", "inside": "ball", "container": "goblet"}})
     scene = scene_of(sc)
     escaped = []
-    for k in range(12):
-        world = World(scene, sc.settings)
-        a = math.radians(30 * k)
-        pb.resetBaseVelocity(world.handles["ball"].uid, [0.3 * math.cos(a), 0.3 * math.sin(a), 0],
-                             physicsClientId=world.cid)
-        for _ in range(500):  # 1 s
-            world.step()
-        x, y, z, _ = invert(world.pose("goblet")) @ world.pose("ball")[:, 3]
-        if not (math.hypot(x, y) < RIM_INNER_RADIUS and GOBLET["wall"] < z < RIM):
-            escaped.append(f"{30 * k} deg: ball at r = {math.hypot(x, y):.3f} m, z = {z:.3f} m")
+    with Engine() as engine:  # one engine, a fresh world in it per throw
+        for k in range(12):
+            with World(scene, sc.settings, engine) as world:
+                a = math.radians(30 * k)
+                world.engine.resetBaseVelocity(world.handles["ball"].uid,
+                                               [0.3 * math.cos(a), 0.3 * math.sin(a), 0])
+                for _ in range(500):  # 1 s
+                    world.step()
+                x, y, z, _ = invert(world.pose("goblet")) @ world.pose("ball")[:, 3]
+            if not (math.hypot(x, y) < RIM_INNER_RADIUS and GOBLET["wall"] < z < RIM):
+                escaped.append(f"{30 * k} deg: ball at r = {math.hypot(x, y):.3f} m, "
+                               f"z = {z:.3f} m")
     assert not escaped

@@ -67,6 +67,7 @@ def test_fifty_bodies_in_under_twenty_milliseconds():
 @pytest.mark.parametrize("sink", [0.0, 5e-4, 2e-3])
 def test_ball_shortcut_agrees_with_the_mesh_intersection(sink):
     from rgmcad.sim import validity
+    from rgmcad.sim.cache import PartCache
 
     r = 0.01
     sc = tiny({"a": {"part": "ball", "params": {"radius": r}, "mass": 0.01,
@@ -77,8 +78,9 @@ def test_ball_shortcut_agrees_with_the_mesh_intersection(sink):
     ball, track = scene.bodies["a"], scene.bodies["b"]
     analytic = validity._ball_depth(ball.built, ball.pose, track.built, track.pose)
     assert analytic == pytest.approx(sink, abs=1e-9)
-    inter = validity._manifold(ball.built).transform(ball.pose[:3, :4]) ^ validity._manifold(
-        track.built).transform(track.pose[:3, :4])
+    cache = PartCache()
+    inter = validity._manifold(ball.built, cache).transform(ball.pose[:3, :4]) ^ (
+        validity._manifold(track.built, cache).transform(track.pose[:3, :4]))
     mesh_depth = 0.0 if inter.is_empty() else validity.thickness(
         np.asarray(inter.to_mesh().vert_properties)[:, :3].astype(float))
     assert mesh_depth == pytest.approx(sink, abs=1e-4)  # the ball mesh is inscribed
@@ -113,13 +115,15 @@ def test_a_point_deep_in_two_box_bodies_means_the_meshes_penetrate():
     finds one for every crossing deeper than 2 mm."""
     from rgmcad.geometry import pose_matrices
     from rgmcad.sim import validity
+    from rgmcad.sim.cache import PartCache
 
     sc = tiny({"a": {**CUBE, "params": {"length": 0.2, "width": 0.03, "height": 0.004}},
                "b": {"part": "track", "params": {"length": 0.1, "width": 0.06, "height": 0.02,
                                                  "wall": 0.005}}}, E)
     scene = scene_of(sc)
     a, b = scene.bodies["a"].built, scene.bodies["b"].built
-    boxes_a, boxes_b = validity._box_pieces(a), validity._box_pieces(b)
+    cache = PartCache()
+    boxes_a, boxes_b = validity._box_pieces(a, cache), validity._box_pieces(b, cache)
     assert boxes_a is not None and len(boxes_b[0]) == 3  # a track is three boxes
     rng = np.random.default_rng(0)
     n = 400
@@ -133,7 +137,7 @@ def test_a_point_deep_in_two_box_bodies_means_the_meshes_penetrate():
             frames_a[:, 0], np.broadcast_to(boxes_a[1][0], (n, 3)),
             np.broadcast_to(frame_b, (n, 4, 4)), np.broadcast_to(half_b, (n, 3)),
             validity.TOLERANCE / 2 + 1e-6)
-    depth = np.array([validity._pair_penetration(a, pa, b, pb)[0]
+    depth = np.array([validity._pair_penetration(a, pa, b, pb, cache)[0]
                       for pa, pb in zip(pose_a, pose_b, strict=True)])
     assert np.all(depth[found] > validity.TOLERANCE)
     deep = depth > 2e-3

@@ -4,7 +4,9 @@ Prints, for each scenario's `solved` layout and its first valid Sobol layouts (t
 successes and failures an optimisation run simulates), the mean wall time per
 simulation, the time inside pybullet's stepSimulation, the overhead (world build, validity,
 event checks, bookkeeping) as a share of the stepping time, and simulations per second on one
-core. Also times the validity test on a 50-body scene.
+core. Simulations share one engine and one part cache, as in a worker process. Also times
+the validity test on a 50-body scene, and what a simulation given no engine pays for its
+own (connecting and disconnecting a pybullet client).
 
     uv run python tools/bench_simulation.py [--repeat 5]
 """
@@ -19,28 +21,31 @@ from scipy.stats import qmc
 from rgmcad.scene.bodies import load_parts, make_scene
 from rgmcad.scene.design_space import values_from_mapping, values_from_vector
 from rgmcad.scene.loader import load_scenario, parse_scenario
+from rgmcad.sim.cache import PartCache
+from rgmcad.sim.engine import Engine
 from rgmcad.sim.run import simulate
 from rgmcad.sim.validity import check_validity
 
 
-def bench_scenario(path: Path, repeat: int, args_valid: int) -> None:
+def bench_scenario(path: Path, repeat: int, args_valid: int, engine: Engine) -> None:
     scenario = load_scenario(path)
     parts = load_parts(scenario)
+    cache = PartCache()
     # the solved layout plus the first valid layouts of a Sobol sequence: the mix of
     # successes and failures an optimisation run simulates
     layouts = [values_from_mapping(scenario, scenario.layouts["solved"])]
     for v in qmc.Sobol(scenario.dimension, seed=0).random(256):
         values = values_from_vector(scenario, v)
-        if check_validity(make_scene(scenario, values, parts)).valid:
+        if check_validity(make_scene(scenario, values, parts), cache=cache).valid:
             layouts.append(values)
         if len(layouts) == 1 + args_valid:
             break
-    simulate(scenario, layouts[0], parts)  # warm caches (OBJ pieces, manifolds)
+    simulate(scenario, layouts[0], parts, engine=engine, cache=cache)  # warm the cache
     wall = step = valid = build = 0.0
     n = sim = 0
     for _ in range(repeat):
         for values in layouts:
-            r = simulate(scenario, values, parts)
+            r = simulate(scenario, values, parts, engine=engine, cache=cache)
             if r.outcome.value == "invalid":
                 continue
             wall += r.wall_time
@@ -65,11 +70,20 @@ def bench_validity() -> None:
     scenario = parse_scenario({"objects": objects, "events": {
         "e": {"type": "contact", "first": "c0", "second": "c1"}}})
     scene = make_scene(scenario, np.zeros(0), load_parts(scenario))
-    check_validity(scene)
+    cache = PartCache()
+    check_validity(scene, cache=cache)
     start = time.perf_counter()
     for _ in range(20):
-        check_validity(scene)
+        check_validity(scene, cache=cache)
     print(f"validity, 50 bodies: {(time.perf_counter() - start) / 20 * 1e3:.2f} ms per test")
+
+
+def bench_engine(n: int = 50) -> None:
+    start = time.perf_counter()
+    for _ in range(n):
+        Engine().close()
+    print(f"an engine of its own (connect + disconnect): {(time.perf_counter() - start) / n * 1e3:.1f}"
+          " ms per simulation")
 
 
 def main() -> None:
@@ -77,9 +91,11 @@ def main() -> None:
     parser.add_argument("--repeat", type=int, default=2)
     parser.add_argument("--layouts", type=int, default=8, help="valid Sobol layouts per scenario")
     args = parser.parse_args()
-    for path in sorted(Path("scenarios").glob("*.toml")):
-        bench_scenario(path, args.repeat, args.layouts)
+    with Engine() as engine:
+        for path in sorted(Path("scenarios").glob("*.toml")):
+            bench_scenario(path, args.repeat, args.layouts, engine)
     bench_validity()
+    bench_engine()
 
 
 if __name__ == "__main__":

@@ -23,11 +23,22 @@ cannot express alternatives, which its authors listed as future work.
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping
+from enum import StrEnum
 
 from rgmcad.scene.eventspec import Negation
-from rgmcad.scene.scenario import EventSpec
+from rgmcad.scene.model import EventSpec
 
-ASLEEP, AWAKE, SUCCESS, FAILURE = "asleep", "awake", "success", "failure"
+
+class EventState(StrEnum):
+    """Where an event stands; its value is the word results files use."""
+
+    ASLEEP = "asleep"
+    AWAKE = "awake"
+    SUCCESS = "success"
+    FAILURE = "failure"
+
+
+ASLEEP, AWAKE, SUCCESS, FAILURE = EventState
 
 
 class CausalGraph:
@@ -53,7 +64,7 @@ class CausalGraph:
         self.holds = {n: s.hold for n, s in events.items()}
         # events whose condition must never hold: holding fails them, the timeout succeeds
         self.never = {n for n, s in events.items() if s.negate is Negation.ALWAYS}
-        self.state = dict.fromkeys(events, ASLEEP)
+        self.state: dict[str, EventState] = dict.fromkeys(events, ASLEEP)
         self.time: dict[str, float | None] = dict.fromkeys(events)  # of success or failure
         self.woke: dict[str, float] = {}
         self._true_since: dict[str, float] = {}
@@ -72,7 +83,7 @@ class CausalGraph:
             self._wake(self.root, t)
         # iterate over a snapshot; events woken during the sweep are evaluated when they wake
         for name in list(self.awake):
-            if self.state[name] == AWAKE:
+            if self.state[name] is AWAKE:
                 self._evaluate(name, t)
         return not self.awake
 
@@ -102,18 +113,18 @@ class CausalGraph:
     def _succeed(self, name: str, t: float) -> None:
         self._finish(name, SUCCESS, t)
         for child in self.children[name]:
-            if self.state[child] == ASLEEP and self._ready(child):
+            if self.state[child] is ASLEEP and self._ready(child):
                 self._wake(child, t)
 
     def _ready(self, name: str) -> bool:
-        parents = [self.state[p] == SUCCESS for p in self.specs[name].after]
+        parents = [self.state[p] is SUCCESS for p in self.specs[name].after]
         return any(parents) if self.specs[name].join == "any" else all(parents)
 
-    def _finish(self, name: str, state: str, t: float) -> None:
+    def _finish(self, name: str, state: EventState, t: float) -> None:
         self.state[name] = state
         self.time[name] = t
         self.awake.remove(name)
 
     def succeeded(self) -> bool:
         """True when every leaf event succeeded."""
-        return all(self.state[n] == SUCCESS for n, kids in self.children.items() if not kids)
+        return all(self.state[n] is SUCCESS for n, kids in self.children.items() if not kids)

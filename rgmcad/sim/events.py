@@ -1,6 +1,6 @@
 """Event conditions, evaluated on a running :class:`~rgmcad.sim.world.World`.
 
-Each factory takes an :class:`~rgmcad.scene.scenario.EventSpec` and a world (at t = 0, where it reads
+Each factory takes an :class:`~rgmcad.scene.model.EventSpec` and a world (at t = 0, where it reads
 any initial state it needs) and returns a condition: a function of no arguments, true when the
 event's condition holds now. Conditions run before every physics step while their event is
 awake, so they are closures over pre-resolved handles and use plain floats, not numpy.
@@ -41,7 +41,7 @@ from scipy.spatial import ConvexHull
 
 from rgmcad.geometry import invert
 from rgmcad.scene.eventspec import ENDS, Negation
-from rgmcad.scene.scenario import EventSpec
+from rgmcad.scene.model import EventSpec
 from rgmcad.sim.world import World
 
 Condition = Callable[[], bool]
@@ -182,24 +182,17 @@ def toppling(spec: EventSpec, world: World) -> Condition:
     return lambda: cos_tilt() <= cos_limit
 
 
-_HULLS: dict[int, tuple[object, np.ndarray, np.ndarray]] = {}
-
-
 def _hull_equations(built) -> tuple[np.ndarray, np.ndarray]:
-    """Outward face normals (k, 3) and offsets (k,) of a built body's convex hull, cached."""
-    cached = _HULLS.get(id(built))
-    if cached is None or cached[0] is not built:
-        hull = ConvexHull(np.asarray(built.vertices, float))
-        cached = (built, hull.equations[:, :3].copy(), hull.equations[:, 3].copy())
-        _HULLS[id(built)] = cached
-    return cached[1], cached[2]
+    """Outward face normals (k, 3) and offsets (k,) of a built body's convex hull."""
+    hull = ConvexHull(np.asarray(built.vertices, float))
+    return hull.equations[:, :3].copy(), hull.equations[:, 3].copy()
 
 
 def inclusion(spec: EventSpec, world: World) -> Condition:
     inside, container = spec.objects["inside"], spec.objects["container"]
     inner = world.scene.bodies[inside].built
     outer = world.scene.bodies[container].built
-    normals, offsets = _hull_equations(outer)
+    normals, offsets = world.cache.get("hull", outer, lambda: _hull_equations(outer))
     centre = world.point_reader(inside, inner.centre_of_mass)
     (x0, y0, z0), (x1, y1, z1) = np.asarray(outer.bbox, float).tolist()
     fixed = invert(world.pose(container)) if world.scene.bodies[container].static else None

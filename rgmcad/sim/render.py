@@ -32,18 +32,18 @@ class Renderer:
         self.world = world
         self.width, self.height = width, height
         self.ghosts: list[tuple[int, object]] = []
-        cid = world.cid
+        engine = world.engine
         for i, (name, body) in enumerate(world.scene.bodies.items()):
             if body.plane:
                 continue  # an infinite plane would hide the view; the background stands for it
             h = world.handles[name]
             color = _STATIC if body.static else _PALETTE[i % len(_PALETTE)]
             pos, orn = to_pybullet(np.linalg.inv(h.com_to_part))  # part frame in the COM frame
-            shape = pb.createVisualShape(
+            shape = engine.createVisualShape(
                 pb.GEOM_MESH, vertices=np.asarray(body.built.vertices, float).tolist(),
                 indices=np.asarray(body.built.faces, int).ravel().tolist(), rgbaColor=color,
-                visualFramePosition=pos, visualFrameOrientation=orn, physicsClientId=cid)
-            ghost = pb.createMultiBody(0, -1, shape, physicsClientId=cid)
+                visualFramePosition=pos, visualFrameOrientation=orn)
+            ghost = engine.createMultiBody(0, -1, shape)
             self.ghosts.append((ghost, h))
         self._camera(world.scene)
 
@@ -67,17 +67,16 @@ class Renderer:
 
     def image(self) -> np.ndarray:
         """(height, width, 3) uint8 RGB picture of the world now."""
-        cid = self.world.cid
+        engine = self.world.engine
         for ghost, h in self.ghosts:
             if h.link < 0:
-                pos, orn = pb.getBasePositionAndOrientation(h.uid, physicsClientId=cid)
+                pos, orn = engine.getBasePositionAndOrientation(h.uid)
             else:
-                pos, orn = pb.getLinkState(h.uid, h.link, physicsClientId=cid)[:2]
-            pb.resetBasePositionAndOrientation(ghost, pos, orn, physicsClientId=cid)
-        _, _, rgba, _, _ = pb.getCameraImage(
+                pos, orn = engine.getLinkState(h.uid, h.link)[:2]
+            engine.resetBasePositionAndOrientation(ghost, pos, orn)
+        _, _, rgba, _, _ = engine.getCameraImage(
             self.width, self.height, self.view, self.projection,
-            renderer=pb.ER_TINY_RENDERER, lightDirection=[0.4, -0.6, 1.0], shadow=0,
-            physicsClientId=cid)
+            renderer=pb.ER_TINY_RENDERER, lightDirection=[0.4, -0.6, 1.0], shadow=0)
         return np.asarray(rgba, np.uint8).reshape(self.height, self.width, 4)[:, :, :3]
 
 
@@ -126,4 +125,5 @@ def record_video(scenario, values, parts, path: Path, fps: float, width: int, he
 
 def render_png(scene: Scene, settings, path: Path, width: int, height: int) -> None:
     """Draw a posed scene (at rest, before any step) to a PNG file."""
-    save_png(Renderer(World(scene, settings), width, height).image(), path)
+    with World(scene, settings) as world:
+        save_png(Renderer(world, width, height).image(), path)

@@ -3,7 +3,9 @@
 A layout whose bodies intersect at the start is ``invalid`` and is not simulated. Otherwise
 the world is built, and at every ``t = i * dt`` the awake events are evaluated before the
 physics step; the run stops as soon as the causal graph is resolved, or at the scenario's
-maximum duration (events still awake then are left ``awake`` and the outcome is a failure).
+maximum duration (events still awake then are left awake and the outcome is a failure).
+
+Outcomes and event states are enums whose values are the words written to results files.
 """
 
 from __future__ import annotations
@@ -15,16 +17,20 @@ from enum import StrEnum
 
 import numpy as np
 
-from rgmcad.parts.build import BuiltPart
+from rgmcad.parts.store import BuiltPart
 from rgmcad.scene.bodies import make_scene
-from rgmcad.scene.scenario import Scenario
-from rgmcad.sim.causal import SUCCESS, CausalGraph
+from rgmcad.scene.model import Scenario
+from rgmcad.sim.cache import PartCache
+from rgmcad.sim.causal import CausalGraph, EventState
+from rgmcad.sim.engine import Engine
 from rgmcad.sim.events import make_condition
 from rgmcad.sim.validity import TOLERANCE, Validity, check_validity
 from rgmcad.sim.world import World
 
 
 class Outcome(StrEnum):
+    """How a simulation ended; its value is the word results files use."""
+
     SUCCESS = "success"
     FAILURE = "failure"
     INVALID = "invalid"
@@ -33,7 +39,7 @@ class Outcome(StrEnum):
 @dataclass(frozen=True)
 class EventRecord:
     name: str
-    state: str  # asleep | awake | success | failure
+    state: EventState
     time: float | None  # s, when it succeeded or failed
 
 
@@ -50,16 +56,17 @@ class SimulationResult:
 
     @property
     def n_success(self) -> int:
-        return sum(e.state == SUCCESS for e in self.events)
+        return sum(e.state is EventState.SUCCESS for e in self.events)
 
     def labels(self) -> dict[str, bool | None]:
         """Per event: True success, False failure, None never resolved."""
-        return {e.name: {"success": True, "failure": False}.get(e.state) for e in self.events}
+        return {e.name: _LABELS.get(e.state) for e in self.events}
 
     def to_dict(self) -> dict:
         out = {
             "outcome": self.outcome.value,
-            "events": [{"name": e.name, "state": e.state, "time": e.time} for e in self.events],
+            "events": [{"name": e.name, "state": e.state.value, "time": e.time}
+                       for e in self.events],
             "successful_events": self.n_success,
             "sim_time": self.sim_time,
             "wall_time": self.wall_time,
@@ -70,12 +77,15 @@ class SimulationResult:
         return out
 
 
+_LABELS = {EventState.SUCCESS: True, EventState.FAILURE: False}
+
 Observer = Callable[[World, float], None]
 
 
 def simulate(scenario: Scenario, values, parts: Mapping[str, BuiltPart], *,
              check: bool = True, tolerance: float = TOLERANCE,
-             observer: Observer | None = None, observe_every: int = 1) -> SimulationResult:
+             observer: Observer | None = None, observe_every: int = 1,
+             engine: Engine | None = None, cache: PartCache | None = None) -> SimulationResult:
     """Simulate the layout with real parameter ``values`` (d,).
 
     Parameters
@@ -84,45 +94,47 @@ def simulate(scenario: Scenario, values, parts: Mapping[str, BuiltPart], *,
     check : run the validity test first (an invalid layout is not simulated).
     observer : called as ``observer(world, t)`` every ``observe_every`` steps and at the end
         (for rendering; leave None for speed).
+    engine, cache : reused by a caller that simulates many layouts (see
+        :class:`~rgmcad.sim.world.World`); None: the simulation's own.
     """
     start = time.perf_counter()
     scene = make_scene(scenario, np.asarray(values, float), parts)
     validity = None
     if check:
-        validity = check_validity(scene, tolerance)
+        validity = check_validity(scene, tolerance, cache=cache)
         if not validity.valid:
-            events = tuple(EventRecord(n, "asleep", None) for n in scenario.events)
+            events = tuple(EventRecord(n, EventState.ASLEEP, None) for n in scenario.events)
             elapsed = time.perf_counter() - start
             return SimulationResult(Outcome.INVALID, events, 0.0, elapsed, 0.0, validity,
                                     elapsed)
     built_at = time.perf_counter()
     settings = scenario.settings
-    world = World(scene, settings)
-    graph = CausalGraph(
-        scenario.events,
-        {name: make_condition(spec, world) for name, spec in scenario.events.items()},
-        settings.event_timeout,
-    )
-    ready_at = time.perf_counter()
-    dt = settings.timestep
-    n_steps = int(round(settings.duration / dt))
-    step_time = 0.0
-    t = 0.0
-    clock = time.perf_counter
-    step = world.step
-    for i in range(n_steps + 1):
-        t = i * dt
-        if graph.update(t):
-            break
-        if observer is not None and i % observe_every == 0:
+    with World(scene, settings, engine, cache) as world:
+        graph = CausalGraph(
+            scenario.events,
+            {name: make_condition(spec, world) for name, spec in scenario.events.items()},
+            settings.event_timeout,
+        )
+        ready_at = time.perf_counter()
+        dt = settings.timestep
+        n_steps = int(round(settings.duration / dt))
+        step_time = 0.0
+        t = 0.0
+        clock = time.perf_counter
+        step = world.step
+        for i in range(n_steps + 1):
+            t = i * dt
+            if graph.update(t):
+                break
+            if observer is not None and i % observe_every == 0:
+                observer(world, t)
+            if i == n_steps:
+                break
+            t0 = clock()
+            step()
+            step_time += clock() - t0
+        if observer is not None:
             observer(world, t)
-        if i == n_steps:
-            break
-        t0 = clock()
-        step()
-        step_time += clock() - t0
-    if observer is not None:
-        observer(world, t)
     outcome = Outcome.SUCCESS if graph.resolved and graph.succeeded() else Outcome.FAILURE
     events = tuple(EventRecord(n, graph.state[n], graph.time[n]) for n in scenario.events)
     return SimulationResult(outcome, events, t, clock() - start, step_time, validity,

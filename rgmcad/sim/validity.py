@@ -20,14 +20,16 @@ that touch are valid, a 0.5 mm overlap is not. The paper summed Bullet's contact
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import singledispatch
 
 import manifold3d
 import numpy as np
 
 from rgmcad.geometry import invert, transform_points
-from rgmcad.parts.build import BuiltBody
-from rgmcad.parts.family import BoxPiece, CylinderPiece, SpherePiece
+from rgmcad.parts.pieces import BoxPiece, CylinderPiece, SpherePiece
+from rgmcad.parts.store import BuiltBody
 from rgmcad.scene.bodies import Scene, SceneBody
+from rgmcad.sim.cache import PartCache
 
 TOLERANCE = 2e-4
 """Deepest penetration (m) still counted as touching."""
@@ -53,21 +55,14 @@ class Validity:
         return float(sum(o.depth for o in self.overlaps))
 
 
-_MANIFOLDS: dict[int, tuple[object, manifold3d.Manifold]] = {}
-
-
-def _manifold(built: BuiltBody) -> manifold3d.Manifold:
-    """The body's mesh as a Manifold, built once per process and per built body."""
-    key = id(built)
-    cached = _MANIFOLDS.get(key)
-    if cached is None or cached[0] is not built:
-        mesh = manifold3d.Mesh(
+def _manifold(built: BuiltBody, cache: PartCache) -> manifold3d.Manifold:
+    """The body's mesh as a Manifold, built once per cache and per built body."""
+    def make():
+        return manifold3d.Manifold(manifold3d.Mesh(
             vert_properties=np.asarray(built.vertices, np.float32),
-            tri_verts=np.asarray(built.faces, np.uint32),
-        )
-        cached = (built, manifold3d.Manifold(mesh))
-        _MANIFOLDS[key] = cached
-    return cached[1]
+            tri_verts=np.asarray(built.faces, np.uint32)))
+
+    return cache.get("manifold", built, make)
 
 
 def _oriented_boxes(bodies: list[SceneBody]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -99,25 +94,41 @@ def _boxes_apart(centres, halves, rot, first, second, margin: float) -> np.ndarr
     return np.any(usable & (gap > reach - margin), axis=1)
 
 
-def _signed_distances(points: np.ndarray, piece) -> np.ndarray:
+@singledispatch
+def signed_distances(piece, points: np.ndarray) -> np.ndarray:
     """(m,) signed distances (m) from points (m, 3), given in the piece's own frame, to a
-    primitive piece."""
-    if isinstance(piece, SpherePiece):
-        return np.linalg.norm(points, axis=-1) - piece.radius
-    if isinstance(piece, BoxPiece):
-        q = np.abs(points) - np.asarray(piece.size, float) / 2
-    else:  # CylinderPiece, axis z
-        q = np.stack([np.hypot(points[:, 0], points[:, 1]) - piece.radius,
-                      np.abs(points[:, 2]) - piece.height / 2], axis=1)
+    primitive piece (a box, sphere or cylinder)."""
+    raise TypeError(f"no signed distance to a {type(piece).__name__}")
+
+
+@signed_distances.register
+def _(piece: SpherePiece, points: np.ndarray) -> np.ndarray:
+    return np.linalg.norm(points, axis=-1) - piece.radius
+
+
+@signed_distances.register
+def _(piece: BoxPiece, points: np.ndarray) -> np.ndarray:
+    return _box_distance(np.abs(points) - np.asarray(piece.size, float) / 2)
+
+
+@signed_distances.register
+def _(piece: CylinderPiece, points: np.ndarray) -> np.ndarray:  # axis z
+    return _box_distance(np.stack([np.hypot(points[:, 0], points[:, 1]) - piece.radius,
+                                   np.abs(points[:, 2]) - piece.height / 2], axis=1))
+
+
+def _box_distance(q: np.ndarray) -> np.ndarray:
+    """Signed distances from per-axis excesses (m, k) over a box's half sizes."""
     return np.linalg.norm(np.maximum(q, 0.0), axis=1) + np.minimum(q.max(axis=1), 0.0)
 
 
 def _signed_distance(point: np.ndarray, piece) -> float:
     """Signed distance (m) from a point in the piece's parent frame to a primitive piece."""
-    return float(_signed_distances(transform_points(invert(piece.frame), point[None]), piece)[0])
+    return float(signed_distances(piece, transform_points(invert(piece.frame), point[None]))[0])
 
 
-_PRIMITIVES = (BoxPiece, SpherePiece, CylinderPiece)
+_PRIMITIVES = tuple(t for t in signed_distances.registry if t is not object)
+"""Piece types that tile a part exactly and have a signed distance."""
 
 
 def _ball_depth(ball: BuiltBody, ball_pose, other: BuiltBody, other_pose) -> float | None:
@@ -141,7 +152,8 @@ def _is_ball(built: BuiltBody) -> bool:
     return len(built.pieces) == 1 and isinstance(built.pieces[0], SpherePiece)
 
 
-def _pair_penetration(a: BuiltBody, pose_a, b: BuiltBody, pose_b) -> tuple[float, float]:
+def _pair_penetration(a: BuiltBody, pose_a, b: BuiltBody, pose_b,
+                      cache: PartCache) -> tuple[float, float]:
     """``(depth, volume)`` of the intersection of two posed bodies (m, m^3; ``(0, 0)`` when
     they do not intersect; volume 0 when a ball was tested analytically)."""
     depth = _ball_depth(a, pose_a, b, pose_b)
@@ -149,7 +161,8 @@ def _pair_penetration(a: BuiltBody, pose_a, b: BuiltBody, pose_b) -> tuple[float
         depth = _ball_depth(b, pose_b, a, pose_a)
     if depth is not None:
         return depth, 0.0
-    inter = _manifold(a) ^ _manifold(b).transform((invert(pose_a) @ pose_b)[:3, :4])  # in a's frame
+    inter = _manifold(a, cache) ^ _manifold(b, cache).transform(
+        (invert(pose_a) @ pose_b)[:3, :4])  # in a's frame
     if inter.is_empty():
         return 0.0, 0.0
     volume = float(inter.volume())
@@ -174,14 +187,16 @@ def thickness(points: np.ndarray) -> float:
 
 
 def check_validity(
-    scene: Scene, tolerance: float = TOLERANCE, stop_at_first: bool = False
+    scene: Scene, tolerance: float = TOLERANCE, stop_at_first: bool = False,
+    cache: PartCache | None = None,
 ) -> Validity:
     """Test every pair of bodies that may collide; see the module docstring.
 
     With ``stop_at_first`` the test returns at the first penetration found (``overlaps``
     then holds that one): enough for a yes/no answer, and most random layouts of a crowded
-    scene are invalid.
+    scene are invalid. ``cache`` keeps the parts' meshes for the next call.
     """
+    cache = PartCache() if cache is None else cache
     solids = [b for b in scene.bodies.values() if not b.plane]
     planes = [b for b in scene.bodies.values() if b.plane]
     excluded = scene.jointed_pairs()
@@ -223,7 +238,7 @@ def check_validity(
         for i, j in pairs:
             a, b = solids[i], solids[j]
             tested += 1
-            depth, volume = _pair_penetration(a.built, a.pose, b.built, b.pose)
+            depth, volume = _pair_penetration(a.built, a.pose, b.built, b.pose, cache)
             if depth > tolerance:
                 overlaps.append(Overlap(a.name, b.name, depth, volume))
                 if stop_at_first:
@@ -231,7 +246,7 @@ def check_validity(
     return Validity(not overlaps, tuple(overlaps), tested)
 
 
-def _box_pieces(built: BuiltBody) -> tuple[np.ndarray, np.ndarray] | None:
+def _box_pieces(built: BuiltBody, cache: PartCache) -> tuple[np.ndarray, np.ndarray] | None:
     """Frames (p, 4, 4) and half sizes (p, 3) of a body made only of box pieces that all lie
     inside its mesh (checked with manifold3d), else None: then a ball inside one of its
     pieces is inside the body."""
@@ -240,7 +255,7 @@ def _box_pieces(built: BuiltBody) -> tuple[np.ndarray, np.ndarray] | None:
     boxes = manifold3d.Manifold.batch_boolean(
         [manifold3d.Manifold.cube(tuple(q.size), True).transform(np.asarray(q.frame)[:3, :4])
          for q in built.pieces], manifold3d.OpType.Add)
-    outside = float((boxes - _manifold(built)).volume())
+    outside = float((boxes - _manifold(built, cache)).volume())
     if outside > 1e-6 * float(boxes.volume()):  # float32 mesh: ~1e-9 relative
         return None
     return (np.stack([np.asarray(q.frame, float) for q in built.pieces]),
@@ -278,9 +293,12 @@ class LayoutValidity:
         The scenario's built parts.
     tolerance : float
         As in :func:`check_validity`.
+    cache : PartCache, optional
+        Keeps the parts' meshes (shared with :func:`check_validity` calls given it).
     """
 
-    def __init__(self, scenario, parts, tolerance: float = TOLERANCE):
+    def __init__(self, scenario, parts, tolerance: float = TOLERANCE,
+                 cache: PartCache | None = None):
         from rgmcad.scene.bodies import make_scene
         from rgmcad.scene.design_space import bounds
 
@@ -289,6 +307,7 @@ class LayoutValidity:
         excluded = scene.jointed_pairs()
         self.scenario = scenario
         self.tolerance = float(tolerance)
+        self.cache = PartCache() if cache is None else cache
         self.solids = [b for b in scene.bodies.values() if not b.plane]
         self.planes = [b for b in scene.bodies.values() if b.plane]
         lo = np.array([b.built.bbox[0] for b in self.solids], float).reshape(-1, 3)
@@ -308,7 +327,7 @@ class LayoutValidity:
         # box of each: the intersection then holds a ball of diameter > tolerance, so it is
         # thicker than that in every direction. Only the pairs without such a point go on to
         # manifold3d. On BALLRUN's Sobol layouts this halves the cost of a test.
-        boxes = [_box_pieces(b.built) for b in self.solids]
+        boxes = [_box_pieces(b.built, self.cache) for b in self.solids]
         primitive = [all(isinstance(q, _PRIMITIVES) for q in b.built.pieces) for b in self.solids]
         self.shortcuts: list[tuple | None] = []
         for i, j in pairs:
@@ -381,7 +400,7 @@ class LayoutValidity:
                 continue
             i, j = first[k], second[k]
             depth, _ = _pair_penetration(self.solids[i].built, poses[row, i],
-                                         self.solids[j].built, poses[row, j])
+                                         self.solids[j].built, poses[row, j], self.cache)
             if depth > tol:
                 valid[row] = False
         return valid
@@ -396,7 +415,7 @@ class LayoutValidity:
         for piece in self.solids[other].built.pieces:
             frames = to_other @ piece.frame
             local = np.einsum("rji,rj->ri", frames[:, :3, :3], centres - frames[:, :3, 3])
-            depth = np.maximum(depth, sphere.radius - _signed_distances(local, piece))
+            depth = np.maximum(depth, sphere.radius - signed_distances(piece, local))
         return depth
 
     def _box_bodies_penetrate(self, boxes_a, boxes_b, pose_a, pose_b) -> np.ndarray:
