@@ -10,13 +10,15 @@ import shutil
 import numpy as np
 import pytest
 
-import rgmcad.cli.optimize
 from rgmcad.cli import main
+from rgmcad.cli.optimize import show
 from rgmcad.errors import RunDirectoryError
 from rgmcad.learning import LearningSettings
 from rgmcad.runs.problem import ScenarioProblem, SimRecord
 from rgmcad.runs.robustness import EPS_GRID, ball_samples, wilson_interval
 from rgmcad.runs.store import SIMULATIONS, RunStore, run_identity
+from rgmcad.runs.workflow import optimize_scenario
+from rgmcad.sim.run import Outcome
 
 SIMPLE = "scenarios/simple.toml"
 
@@ -36,21 +38,20 @@ def _run(argv) -> tuple[int, dict | None]:
     return code, (json.loads(text) if text else None)
 
 
-@pytest.fixture(scope="module")
-def tiny_budget():
-    with pytest.MonkeyPatch.context() as mp:
-        mp.setattr(rgmcad.cli.optimize, "budget", lambda name: TINY)
-        yield
+def _optimize(run, workers=1, **changes):
+    """The workflow of ``rgmcad optimize SIMPLE --seed 3 --budget small`` on the tiny
+    settings."""
+    return optimize_scenario(SIMPLE, **{"seed": 3, "budget": "small", "settings": TINY,
+                                        "run_dir": run, "workers": workers, **changes})
 
 
 @pytest.fixture(scope="module")
-def reference(tiny_budget, tmp_path_factory):
+def reference(tmp_path_factory):
     """One uninterrupted run on one worker: (run dir, its JSON summary)."""
     run = tmp_path_factory.mktemp("reference") / "run"
-    code, summary = _run(["optimize", SIMPLE, "--run", str(run), "--seed", "3",
-                          "--budget", "small", "--workers", "1", "--json"])
-    assert code == 0
-    return run, summary
+    done = _optimize(run)
+    assert done.verified and not done.finished_before
+    return run, done.summary
 
 
 def test_the_pipeline_runs_on_simple_and_writes_its_outputs(reference):
@@ -84,9 +85,7 @@ def test_resuming_an_interrupted_run_gives_the_same_result(reference, tmp_path):
     kept = len(lines) // 2
     # half the simulations, then a line cut in the middle (killed while writing)
     (run / SIMULATIONS).write_bytes(b"".join(lines[:kept]) + lines[kept][: len(lines[kept]) // 2])
-    code, resumed = _run(["optimize", SIMPLE, "--run", str(run), "--seed", "3",
-                          "--budget", "small", "--workers", "1", "--json"])
-    assert code == 0
+    resumed = _optimize(run).summary
     assert resumed["vector"] == ref["vector"]
     assert resumed["probability"] == ref["probability"]
     assert resumed["simulations"] == ref["simulations"]
@@ -94,30 +93,41 @@ def test_resuming_an_interrupted_run_gives_the_same_result(reference, tmp_path):
     stored = [json.loads(line) for line in (run / SIMULATIONS).read_text().splitlines()]
     assert len(stored) == len(lines)
     # a finished run is not recomputed
-    code, again = _run(["optimize", SIMPLE, "--run", str(run), "--seed", "3",
-                        "--budget", "small", "--workers", "1", "--json"])
-    assert code == 0 and again["vector"] == ref["vector"]
+    again = _optimize(run)
+    assert again.finished_before and again.summary["vector"] == ref["vector"]
 
 
 def test_two_workers_give_the_same_result_as_one(reference, tmp_path):
     _, ref = reference
-    code, two = _run(["optimize", SIMPLE, "--run", str(tmp_path / "run"), "--seed", "3",
-                      "--budget", "small", "--workers", "2", "--json"])
-    assert code == 0
+    two = _optimize(tmp_path / "run", workers=2).summary
     assert two["vector"] == ref["vector"] and two["probability"] == ref["probability"]
 
 
-@pytest.mark.parametrize("change", [["--seed", "4"], ["--budget", "default"]])
-def test_a_run_directory_made_with_other_settings_is_refused(reference, change, capsys):
+@pytest.mark.parametrize("change", [{"seed": 4}, {"settings": LearningSettings()}])
+def test_a_run_directory_made_with_other_settings_is_refused(reference, change):
     run, _ = reference
-    argv = ["optimize", SIMPLE, "--run", str(run), "--seed", "3", "--budget", "small"]
-    argv[argv.index(change[0]) + 1] = change[1]
-    with pytest.MonkeyPatch.context() as mp:  # "default" must differ from the tiny budget
-        mp.setattr(rgmcad.cli.optimize, "budget",
-                   lambda name: TINY if name == "small" else LearningSettings())
-        assert main(argv) == 2
+    with pytest.raises(RunDirectoryError, match="settings.json"):
+        _optimize(run, **change)
+
+
+def test_the_command_refuses_a_foreign_run_directory_in_one_line(reference, capsys):
+    run, _ = reference  # made with the tiny settings, not those of --budget small
+    assert main(["optimize", SIMPLE, "--run", str(run), "--seed", "3", "--budget",
+                 "small"]) == 2
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and "settings.json" in err
+
+
+def test_the_command_prints_a_summary(reference, capsys):
+    run, summary = reference
+    show(summary, as_json=False)
+    out = capsys.readouterr().out
+    assert f"{summary['scenario']}: {summary['layout']}" in out
+    assert all(name in out for name in summary["tolerances"])
+    assert str(run / "report.md") in out
+    show(summary, as_json=True, wall_time=0.5)
+    shown = json.loads(capsys.readouterr().out)
+    assert shown == {**summary, "wall_time_this_call": 0.5}
 
 
 def test_a_run_directory_of_another_scenario_is_refused(reference, capsys):
@@ -146,7 +156,7 @@ def test_evaluate_refuses_a_bad_layout(capsys):
 # --- the pieces ------------------------------------------------------------------------------
 
 
-def _record(outcome="failure"):
+def _record(outcome=Outcome.FAILURE):
     return SimRecord(True, outcome, {"a": (True, 0.1), "b": (None, None)}, 0.05)
 
 
@@ -154,12 +164,12 @@ def test_run_store_drops_a_half_written_line_and_appends_after_it(tmp_path):
     ident = run_identity("s", "0" * 64, 0, TINY)
     with RunStore(tmp_path, ident) as store:
         store.append(np.array([0.1, 0.2]), _record())
-        store.append(np.array([0.3, 0.4]), _record("success"))
+        store.append(np.array([0.3, 0.4]), _record(Outcome.SUCCESS))
     path = tmp_path / SIMULATIONS
     path.write_bytes(path.read_bytes() + b'{"i": 2, "vector": [0.5, 0.')
     with RunStore(tmp_path, ident) as store:
         assert store.n_lines == 2
-        assert store.lookup(np.array([0.3, 0.4])).outcome == "success"
+        assert store.lookup(np.array([0.3, 0.4])).outcome is Outcome.SUCCESS
         assert store.lookup(np.array([0.3, 0.40000000000000002])) is not None  # same double
         assert store.lookup(np.array([0.3, 0.4000001])) is None
         store.append(np.array([0.5, 0.6]), _record())
@@ -189,17 +199,18 @@ def test_run_store_refuses_other_settings_and_a_second_user(tmp_path):
 
 
 class _LoggingPool:
-    """Executor stand-in: runs ``map`` lazily, as a pool hands results back, and logs
-    which function each call ran."""
+    """Executor stand-in whose workers' context is ``context``: runs ``map_context`` lazily,
+    as a pool hands results back, and logs which function each call ran."""
 
     workers = 2
 
-    def __init__(self):
+    def __init__(self, context):
+        self.context = context
         self.calls = []
 
-    def map(self, fn, items):
-        self.calls.append(getattr(fn, "__name__", repr(fn)))
-        return map(fn, list(items))
+    def map_context(self, fn, items):
+        self.calls.append(fn.__name__)
+        return (fn(self.context, item) for item in list(items))
 
 
 class _Plane:
@@ -214,26 +225,45 @@ class _Plane:
 
     def simulate_one(self, x):
         ok = bool(x[0] + x[1] > 1)
-        return SimRecord(True, "success" if ok else "failure", {"a": (ok, 0.1)}, 0.01)
+        return SimRecord(True, Outcome.SUCCESS if ok else Outcome.FAILURE, {"a": (ok, 0.1)},
+                         0.01)
 
 
 def test_batches_in_flight_are_stored_in_order_and_validity_is_tested_here_meanwhile(tmp_path):
     from rgmcad.runs.store import RecordedProblem
 
-    pool = _LoggingPool()
+    pool = _LoggingPool(_Plane())
     with RunStore(tmp_path, run_identity("s", "0" * 64, 0, TINY)) as store:
         recorded = RecordedProblem(_Plane(), store, pool)
         first = recorded.submit(np.array([[0.2, 0.3], [0.6, 0.7]]))
         second = recorded.submit(np.array([[0.6, 0.7], [0.1, 0.95]]))  # one vector again
         assert recorded.validity(np.array([[0.5, 0.5], [0.95, 0.5]])).tolist() == [True, False]
-        assert pool.calls == ["simulate_one", "simulate_one"]  # tested here, not in the pool
+        assert pool.calls == ["simulate_task", "simulate_task"]  # tested here, not in the pool
         assert [lab.success for lab in first()] == [False, True]
         assert [lab.success for lab in second()] == [True, True]
         recorded.validity(np.array([[0.5, 0.5], [0.95, 0.5]]))
-        assert pool.calls[-1] == "validity"  # nothing in flight: the pool tests
+        assert pool.calls[-1] == "validity_task"  # nothing in flight: the pool tests
     rows = [json.loads(line) for line in (tmp_path / SIMULATIONS).read_text().splitlines()]
     assert [r["vector"] for r in rows] == [[0.2, 0.3], [0.6, 0.7], [0.6, 0.7], [0.1, 0.95]]
     assert [r["outcome"] for r in rows] == ["failure", "success", "success", "success"]
+
+
+def test_stored_records_are_plain_words_and_old_lines_read_back(tmp_path):
+    ident = run_identity("s", "0" * 64, 0, TINY)
+    with RunStore(tmp_path, ident) as store:
+        store.append(np.array([0.1, 0.2]), _record(Outcome.SUCCESS))
+    line = (tmp_path / SIMULATIONS).read_text()
+    assert line == ('{"i": 0, "vector": [0.1, 0.2], "valid": true, "outcome": "success", '
+                    '"events": {"a": [true, 0.1], "b": [null, null]}, "seconds": 0.05}\n')
+    # a line as rgmcad wrote it before outcomes were enums
+    old = {"i": 1, "vector": [0.3, 0.4], "valid": False, "outcome": "invalid",
+           "events": {"a": [None, None]}, "seconds": 0.001}
+    with open(tmp_path / SIMULATIONS, "a") as f:
+        f.write(json.dumps(old) + "\n")
+    with RunStore(tmp_path, ident) as store:
+        record = store.lookup(np.array([0.3, 0.4]))
+        assert record.outcome is Outcome.INVALID and not record.label().valid
+        assert store.lookup(np.array([0.1, 0.2])).label().success
 
 
 def test_scenario_problem_pickles_small_and_matches_the_simulator():

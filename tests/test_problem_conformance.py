@@ -54,7 +54,7 @@ def recorded_problem(tmp_path):
     inner = ScenarioProblem(SCENARIOS / "simple.toml")
     ident = run_identity("simple", "0" * 64, 0, LearningSettings())
     with RunStore(tmp_path / "run", ident) as store:
-        yield RecordedProblem(inner, store, SerialExecutor())
+        yield RecordedProblem(inner, store, SerialExecutor(inner.context))
 
 
 @contextlib.contextmanager

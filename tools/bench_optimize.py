@@ -1,6 +1,7 @@
 """Where the time of `rgmcad optimize` goes, and how it scales with workers.
 
-1. Runs `rgmcad optimize SCENARIO` (default: ballrun, default budget) in a fresh run directory
+1. Runs the workflow of `rgmcad optimize SCENARIO` (default: ballrun, default budget; its
+   problem timed through the workflow's ``recorded`` parameter) in a fresh run directory
    and splits its wall time into: simulation (waiting for simulation results), validity
    tests (in the pool, or in this process while the exploration's batches are in flight),
    the optimiser's penetration tests (in this process), and the rest (training, sampling,
@@ -16,9 +17,6 @@
 """
 
 import argparse
-import contextlib
-import io
-import json
 import tempfile
 import time
 from pathlib import Path
@@ -26,11 +24,11 @@ from pathlib import Path
 import numpy as np
 from scipy.stats import qmc
 
-import rgmcad.runs.store
-from rgmcad.cli import main as cli_main
 from rgmcad.parts.store import DEFAULT_BUILD_DIR
 from rgmcad.runs.executor import PoolExecutor, SerialExecutor, default_workers
-from rgmcad.runs.problem import ScenarioProblem, context
+from rgmcad.runs.problem import ScenarioProblem, simulate_task
+from rgmcad.runs.store import RecordedProblem
+from rgmcad.runs.workflow import optimize_scenario
 
 TIMES = {"simulation": 0.0, "validity": 0.0, "penetration": 0.0}
 
@@ -67,30 +65,24 @@ def _timed_wait(method):
     return wrapper
 
 
-class TimedProblem(rgmcad.runs.store.RecordedProblem):
+class TimedProblem(RecordedProblem):
     """RecordedProblem that adds up the time spent in each kind of call."""
 
-    submit_records = _timed_wait(rgmcad.runs.store.RecordedProblem.submit_records)
-    validity = _timed("validity", rgmcad.runs.store.RecordedProblem.validity)
-    penetration = _timed("penetration", rgmcad.runs.store.RecordedProblem.penetration)
+    submit_records = _timed_wait(RecordedProblem.submit_records)
+    validity = _timed("validity", RecordedProblem.validity)
+    penetration = _timed("penetration", RecordedProblem.penetration)
 
 
 def overhead(args) -> None:
-    rgmcad.runs.store.RecordedProblem = TimedProblem  # cmd_optimize looks it up at call time
     with tempfile.TemporaryDirectory() as tmp:
-        run = Path(tmp) / "run"
-        argv = ["optimize", args.scenario, "--run", str(run), "--seed", str(args.seed),
-                "--budget", args.budget, "--json"]
-        if args.workers:
-            argv += ["--workers", str(args.workers)]
-        out = io.StringIO()
         cpu_start = _cpu_seconds()
         start = time.perf_counter()
-        with contextlib.redirect_stdout(out):
-            code = cli_main(argv)
+        done = optimize_scenario(args.scenario, seed=args.seed, budget=args.budget,
+                                 run_dir=Path(tmp) / "run", workers=args.workers,
+                                 build_dir=args.build_dir, recorded=TimedProblem)
         wall = time.perf_counter() - start
         cpu = _cpu_seconds() - cpu_start  # the pool's workers have exited: counted
-        summary = json.loads(out.getvalue())
+        summary, code = done.summary, 0 if done.verified else 1
     other = wall - sum(TIMES.values())
     print(f"\n{summary['scenario']} (budget {args.budget}, seed {args.seed}, workers "
           f"{args.workers or 'all'}): exit {code}, {summary['simulations']} simulations, "
@@ -130,16 +122,16 @@ def speedup(args) -> None:
     problem = ScenarioProblem(args.scenario, args.build_dir)
     sobol = qmc.Sobol(problem.dimension, scramble=True, rng=0).random(8 * args.layouts)
     X = sobol[problem.validity(sobol)][: args.layouts]
-    init = (context, (problem.scenario_path, problem.build_dir))
     ratios = []
     results = {}
     for _ in range(args.repeat):
         times = {}
         for workers in (1, 2):
             start = time.perf_counter()
-            ex = SerialExecutor(*init) if workers == 1 else PoolExecutor(workers, *init)
+            ex = (SerialExecutor(problem.context) if workers == 1
+                  else PoolExecutor(workers, problem.context))
             with ex:
-                results[workers] = list(ex.map(problem.simulate_one, list(X)))
+                results[workers] = list(ex.map_context(simulate_task, list(X)))
             times[workers] = time.perf_counter() - start
         ratios.append(times[1] / times[2])
         print(f"{len(X)} simulations: 1 worker {times[1]:.2f} s, 2 workers {times[2]:.2f} s "

@@ -35,7 +35,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
 }
 """Command -> (module of rgmcad.cli, help). Multi-word commands are sub-commands."""
 
-_ENTRY = {"optimize": ("configure_optimize", "cmd_optimize")}
+_ENTRY: dict[str, tuple[str, str]] = {}
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -1,6 +1,82 @@
-"""``rgmcad evaluate``: a layout's local and global robustness, by simulation."""
+"""``rgmcad evaluate``: a layout's local and global robustness, by simulation
+(:func:`rgmcad.runs.workflow.evaluate_layout`)."""
 
-from rgmcad.cli.optimize import cmd_evaluate as run
-from rgmcad.cli.optimize import configure_evaluate as configure
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+from rgmcad.cli.common import add_scenario_arg, say
 
 __all__ = ["configure", "run"]
+
+
+def configure(p: argparse.ArgumentParser) -> None:
+    add_scenario_arg(p)
+    p.add_argument("--layout", required=True, help="a named layout of the scenario or a layout "
+                   "file (e.g. runs/simple-s0/layout.json)")
+    p.add_argument("--samples", type=int, default=50, help="valid layouts simulated per radius "
+                   "(default 50; 30 radii, so 1500 simulations)")
+    p.add_argument("--seed", type=int, default=0, help="seed of the sampling (default 0)")
+    p.add_argument("--workers", type=int, default=None,
+                   help="simulation processes (default: every CPU); results do not depend on it")
+    p.add_argument("--out", metavar="FILE.png", help="the plot (default: next to a layout file, "
+                   "or robustness-SCENARIO-LAYOUT.png here)")
+    p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
+
+
+class _Bar:
+    """Progress on stderr: layouts tested for validity, then simulations (from the first
+    report on)."""
+
+    bar = None
+
+    def stage(self, name: str, total: int | None = None) -> None:
+        if self.bar is None:
+            from tqdm import tqdm
+
+            self.bar = tqdm(desc=name, unit="layout", file=sys.stderr, mininterval=0.5)
+        elif name != self.bar.desc:
+            self.bar.set_description(name)
+            self.bar.reset(total=total)
+
+    def tested(self, n: int) -> None:
+        self.bar.update(n)
+
+    def simulated(self, record, replayed: bool = False) -> None:
+        self.bar.update(1)
+
+    def close(self) -> None:
+        if self.bar is not None:
+            self.bar.close()
+
+
+def run(args) -> int:
+    from rgmcad.errors import UsageError
+    from rgmcad.runs.workflow import evaluate_layout
+
+    if args.samples < 1:
+        raise UsageError("--samples", "", "expected a positive number of layouts per radius")
+    if not Path(args.build_dir).exists():
+        sys.stderr.write(f"building parts into {args.build_dir} (first run only)...\n")
+    bar = _Bar()
+    try:
+        result = evaluate_layout(args.scenario, args.layout, samples=args.samples,
+                                 seed=args.seed, workers=args.workers,
+                                 build_dir=args.build_dir, plot=args.out, progress=bar)
+    finally:
+        bar.close()
+    if args.json:
+        say(json.dumps(result))
+        return 0
+    low, high = result["rho_g_interval"]
+    say(f"{result['scenario']}, layout {result['layout']}: rho_g = {result['rho_g']:.3f} "
+        f"[{low:.3f}, {high:.3f}] from {result['simulations']} simulations "
+        f"in {result['wall_time']:.0f} s")
+    say("eps     rho_l   95 % interval")
+    for e, r, lo, hi in result["curve"][::3]:
+        say(f"{e:5.3f}   {r:5.3f}   [{lo:.3f}, {hi:.3f}]")
+    say(f"plot: {result['plot']}")
+    return 0

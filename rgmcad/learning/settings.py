@@ -16,7 +16,7 @@ from typing import Literal
 
 import numpy as np
 
-__all__ = ["LearningSettings"]
+__all__ = ["LearningSettings", "BUDGETS", "budget"]
 
 
 def _log_grid() -> tuple[float, ...]:
@@ -373,3 +373,28 @@ class LearningSettings:
                 f"unknown LearningSettings field(s) {unknown}; valid: {sorted(names)}"
             )
         return replace(self, **changes)
+
+
+BUDGETS = ("default", "small")
+"""Names of the settings presets of :func:`budget` (``rgmcad optimize --budget``)."""
+
+
+def budget(name: str) -> LearningSettings:
+    """The :class:`LearningSettings` of a budget name.
+
+    ``default`` is the settings behind the paper's Table 1 (SPEC 5.7; every default of
+    ``LearningSettings`` is documented there). ``small`` is a quick look for trying a scenario
+    out and for tests, not for results: N0 = 100 Sobol points, N+ = 20, at most 50
+    exploration and 2 active-learning iterations, a 4 x 4 SVM grid, 16 placement errors,
+    8 errors per candidate in the final choice.
+    """
+    if name == "default":
+        return LearningSettings()
+    if name == "small":
+        return LearningSettings(
+            n_initial=100, n_successes=20, exploration_max_iter=50, active_batch=10,
+            active_max_iter=2, svm_C_grid=(0.1, 1.0, 10.0, 100.0),
+            svm_gamma_grid=(0.1, 1.0, 10.0, 100.0), placement_samples=16,
+            optimizer_max_eval=200, verify_samples=8,
+        )
+    raise ValueError(f"unknown budget {name!r}; valid: {', '.join(BUDGETS)}")

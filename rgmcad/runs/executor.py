@@ -4,9 +4,13 @@ An executor has ``map(fn, items)``: it applies ``fn`` to every item and yields t
 in the order of ``items``, as soon as each is available. ``fn`` must be picklable for the
 pool (a module-level function or a bound method of a picklable object). The pool sends
 items in batches (several per task: a task costs a few milliseconds of pickling and
-scheduling, a simulation 30-150 ms), and its initializer loads the scenario and its built
-parts once per worker. Results never depend on the number of workers: the simulator is
-deterministic and the order is kept.
+scheduling, a simulation 30-150 ms). Results never depend on the number of workers: the
+simulator is deterministic and the order is kept.
+
+An executor's ``initializer(*initargs)`` runs once in every process that runs its tasks
+(this one for the serial executor, each worker for the pool) and returns that process's
+*context*: a :class:`~rgmcad.runs.problem.ScenarioContext` that loaded the scenario, its
+parts and a physics engine once. ``map_context(fn, items)`` calls ``fn(context, item)``.
 
 Adding a backend (a Dask cluster, say) is writing one more class with ``workers``,
 ``map`` and ``close``.
@@ -17,6 +21,7 @@ from __future__ import annotations
 import os
 from collections.abc import Callable, Iterable, Iterator, Sequence
 from concurrent.futures import ProcessPoolExecutor
+from functools import partial
 from typing import Any, Protocol
 
 __all__ = ["Executor", "SerialExecutor", "PoolExecutor", "make_executor", "default_workers",
@@ -30,6 +35,11 @@ class Executor(Protocol):
 
     def map(self, fn: Callable[[Any], Any], items: Iterable[Any]) -> Iterator[Any]:
         """``fn(item)`` for every item, yielded in the order of ``items``."""
+        ...
+
+    def map_context(self, fn: Callable[[Any, Any], Any], items: Iterable[Any]) -> Iterator[Any]:
+        """``fn(context, item)`` for every item, in order, with the context of the process
+        that runs it (what the executor's initializer returned there)."""
         ...
 
     def close(self) -> None:
@@ -46,16 +56,19 @@ def default_workers() -> int:
 
 
 class SerialExecutor:
-    """Runs everything in this process; ``initializer(*initargs)`` runs once, first."""
+    """Runs everything in this process; ``initializer(*initargs)`` runs once, first, and
+    gives :attr:`context`."""
 
     workers = 1
 
     def __init__(self, initializer: Callable | None = None, initargs: Sequence = ()):
-        if initializer is not None:
-            initializer(*initargs)
+        self.context = initializer(*initargs) if initializer is not None else None
 
     def map(self, fn, items):
         return map(fn, items)
+
+    def map_context(self, fn, items):
+        return map(partial(fn, self.context), items)
 
     def close(self) -> None:
         pass
@@ -71,19 +84,26 @@ def _apply_batch(fn: Callable, batch: Sequence) -> list:
     return [fn(item) for item in batch]
 
 
-_THREAD_LIMITS = None  # kept alive for the worker's lifetime
+_CONTEXT = None
+"""In a pool's worker process, what the pool's initializer returned there: the one value a
+worker process exists to keep between tasks, handed to each task of ``map_context``."""
+
+
+def _apply_context_batch(fn: Callable, batch: Sequence) -> list:
+    return [fn(_CONTEXT, item) for item in batch]
 
 
 def _start_worker(threads: int, initializer: Callable | None, initargs: Sequence) -> None:
     """Worker start: cap the BLAS and OpenMP threads of numpy and scikit-learn at
-    ``threads`` (each worker otherwise starts one per CPU: with 2 workers on 2 CPUs, the
-    grid searches' kernel products ran 1.7 times slower), then the caller's initializer."""
-    global _THREAD_LIMITS
+    ``threads`` (each worker otherwise starts one per CPU, and the workers oversubscribe the
+    cores; the cap stays when the limiter object goes), then the caller's initializer, whose
+    result is the worker's context."""
+    global _CONTEXT
     from threadpoolctl import threadpool_limits
 
-    _THREAD_LIMITS = threadpool_limits(limits=threads)
+    threadpool_limits(limits=threads)
     if initializer is not None:
-        initializer(*initargs)
+        _CONTEXT = initializer(*initargs)
 
 
 class PoolExecutor:
@@ -95,13 +115,14 @@ class PoolExecutor:
         Worker processes.
     initializer, initargs
         Run once in each worker when it starts (load the scenario and its parts there),
-        after the worker's BLAS and OpenMP threads are capped at ``CPUs // workers``.
+        after the worker's BLAS and OpenMP threads are capped at ``CPUs // workers``; the
+        result is the worker's context (see :meth:`map_context`).
     max_batch : int, default 8
         Most items per task. A call of ``map`` over n items makes tasks of
         ``ceil(n / (8 workers))`` items (at most ``max_batch``), so each worker gets about
         eight tasks: few enough that scheduling costs little, enough that a slow item does not
         leave the other workers idle for long. The learner's batches of 10 simulations thus go
-        one per task: in tasks of two, one of two workers sat idle for a fifth of each batch.
+        one per task (docs/decisions.md).
     """
 
     def __init__(self, workers: int, initializer: Callable | None = None,
@@ -115,9 +136,15 @@ class PoolExecutor:
                                          initargs=(threads, initializer, tuple(initargs)))
 
     def map(self, fn, items):
+        return self._submit(_apply_batch, fn, items)
+
+    def map_context(self, fn, items):
+        return self._submit(_apply_context_batch, fn, items)
+
+    def _submit(self, apply: Callable, fn: Callable, items):
         items = list(items)
         size = max(1, min(self.max_batch, -(-len(items) // (8 * self.workers))))
-        futures = [self._pool.submit(_apply_batch, fn, items[i:i + size])
+        futures = [self._pool.submit(apply, fn, items[i:i + size])
                    for i in range(0, len(items), size)]
         return self._results(futures)
 
@@ -140,17 +167,16 @@ class PoolExecutor:
         self.close()
 
 
-def map_blocks(executor, fn: Callable[[Any], Any], X) -> Any:
-    """``fn`` (rows -> (k,) array) over the rows of ``X``, one contiguous block per worker,
-    results concatenated in order: for cheap per-row work (a validity test takes under a
-    millisecond) that per-row tasks would spend more time scheduling than doing."""
+def map_blocks(executor, fn: Callable[[Any, Any], Any], X) -> Any:
+    """``fn(context, rows) -> (k,) array`` over the rows of ``X``, one contiguous block per
+    worker, results concatenated in order: for cheap per-row work (a validity test takes
+    under a millisecond) that per-row tasks would spend more time scheduling than doing."""
     import numpy as np
 
     X = np.atleast_2d(np.asarray(X, dtype=float))
-    blocks = min(len(X), executor.workers)
-    if blocks <= 1:
-        return np.asarray(fn(X))
-    return np.concatenate(list(executor.map(fn, np.array_split(X, blocks))))
+    blocks = max(1, min(len(X), executor.workers))
+    return np.concatenate([np.asarray(r) for r in
+                           executor.map_context(fn, np.array_split(X, blocks))])
 
 
 def make_executor(workers: int | None, initializer: Callable | None = None,

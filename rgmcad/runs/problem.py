@@ -1,12 +1,16 @@
 """A scenario as a learning :class:`~rgmcad.learning.oracles.Problem`: the design space
 ``[0, 1]^d``, the exact validity test and the simulator.
 
-:class:`ScenarioProblem` holds only the scenario file and the part cache folder, so it pickles
-in a few hundred bytes; the scenario and its built parts are loaded lazily, once per process
-(:func:`context`), which is what a worker pool needs. Every simulation is reported as a
-:class:`SimRecord` (outcome, per-event label and time, seconds spent), from which the learner's
-:class:`~rgmcad.learning.oracles.Label` follows. Importing this module does not import the
-learner (scikit-learn alone takes 3 s to import), so pool workers start fast.
+What simulating a scenario takes in one process (the scenario, its built parts, the data
+derived from them, the many-layout validity test and a physics engine) is a
+:class:`ScenarioContext`, loaded once and reused for every layout. :class:`ScenarioProblem`
+holds only the scenario file and the part folder, so it pickles in a few hundred bytes, and
+loads its context on first use; its :meth:`~ScenarioProblem.context` is what a worker pool's
+initializer runs, once per worker (:mod:`rgmcad.runs.executor`), and tasks such as
+:func:`simulate_task` get that context as their first argument. Every simulation is reported
+as a :class:`SimRecord` (outcome, per-event label and time, seconds spent), from which the
+learner's :class:`~rgmcad.learning.oracles.Label` follows. Importing this module does not
+import the learner (scikit-learn alone takes 3 s to import), so pool workers start fast.
 
 The causal graph handed to the learner is the scenario's: ``event_parents`` (each event's
 ``after``) and ``any_joins`` (the events with ``join = "any"``).
@@ -21,9 +25,11 @@ from pathlib import Path
 
 import numpy as np
 
-from rgmcad.parts.build import DEFAULT_BUILD_DIR
+from rgmcad.parts.store import DEFAULT_BUILD_DIR
+from rgmcad.sim.run import Outcome
 
-__all__ = ["SimRecord", "ScenarioProblem", "context", "scenario_digest", "event_parents", "any_joins"]
+__all__ = ["SimRecord", "ScenarioContext", "ScenarioProblem", "simulate_task", "validity_task",
+           "scenario_digest", "event_parents", "any_joins"]
 
 
 @dataclass(frozen=True)
@@ -34,8 +40,8 @@ class SimRecord:
     ----------
     valid : bool
         False when the initial layout penetrates (it was then not simulated).
-    outcome : str
-        ``"success"``, ``"failure"`` or ``"invalid"``.
+    outcome : Outcome
+        Stored as its value: ``"success"``, ``"failure"`` or ``"invalid"``.
     events : Mapping[str, tuple[bool | None, float | None]]
         Per event (scenario order): the label (True success, False failure, None never
         resolved) and the time (s) it resolved at.
@@ -44,7 +50,7 @@ class SimRecord:
     """
 
     valid: bool
-    outcome: str
+    outcome: Outcome
     events: Mapping[str, tuple[bool | None, float | None]]
     seconds: float
 
@@ -52,18 +58,19 @@ class SimRecord:
         """The learner's view of this simulation (a :class:`~rgmcad.learning.oracles.Label`)."""
         from rgmcad.learning.oracles import Label  # here: workers need not import scikit-learn
 
-        return Label(self.valid, self.outcome == "success",
+        return Label(self.valid, self.outcome is Outcome.SUCCESS,
                      {e: lab for e, (lab, _) in self.events.items()})
 
     def to_json(self) -> dict:
-        return {"valid": self.valid, "outcome": self.outcome,
+        return {"valid": self.valid, "outcome": self.outcome.value,
                 "events": {e: [lab, t] for e, (lab, t) in self.events.items()},
                 "seconds": self.seconds}
 
     @classmethod
     def from_json(cls, data: Mapping) -> SimRecord:
         events = {e: (v[0], v[1]) for e, v in data["events"].items()}
-        return cls(bool(data["valid"]), str(data["outcome"]), events, float(data["seconds"]))
+        return cls(bool(data["valid"]), Outcome(str(data["outcome"])), events,
+                   float(data["seconds"]))
 
 
 def scenario_digest(path: str | Path) -> str:
@@ -81,24 +88,95 @@ def any_joins(scenario) -> frozenset[str]:
     return frozenset(name for name, ev in scenario.events.items() if ev.join == "any")
 
 
-_CONTEXTS: dict[tuple[str, str], tuple[object, dict]] = {}
-_TESTERS: dict[tuple[str, str], object] = {}  # LayoutValidity per process and context
+class ScenarioContext:
+    """Everything simulating layouts of one scenario takes in one process, loaded once.
 
+    Owns a physics engine (connected at the first simulation) and the data derived from the
+    parts (:class:`~rgmcad.sim.cache.PartCache`); neither changes a result, only its cost.
 
-def context(scenario_path: str, build_dir: str):
-    """``(scenario, parts)`` loaded once per process and per (scenario file, part folder).
-
-    Builds missing parts (CadQuery) the first time; a worker pool's initializer calls this so
-    that the first task does not pay for it.
+    Parameters
+    ----------
+    scenario : Scenario
+    parts : Mapping[str, BuiltPart]
+        Its built parts by object name.
     """
-    key = (scenario_path, build_dir)
-    if key not in _CONTEXTS:
-        from rgmcad.scene.scenario import load_scenario
+
+    def __init__(self, scenario, parts: Mapping):
+        from rgmcad.scene.design_space import bounds
+        from rgmcad.sim.cache import PartCache
+
+        self.scenario = scenario
+        self.parts = parts
+        self.cache = PartCache()
+        self.low, self.high = bounds(scenario)
+        self._engine = None
+        self._tester = None
+
+    @classmethod
+    def load(cls, scenario_path: str | Path, build_dir: str | Path = DEFAULT_BUILD_DIR):
+        """The context of a scenario file; missing parts are built (CadQuery) into
+        ``build_dir``."""
         from rgmcad.scene.bodies import load_parts
+        from rgmcad.scene.loader import load_scenario
 
         scenario = load_scenario(scenario_path)
-        _CONTEXTS[key] = (scenario, load_parts(scenario, Path(build_dir)))
-    return _CONTEXTS[key]
+        return cls(scenario, load_parts(scenario, Path(build_dir)))
+
+    def values(self, x) -> np.ndarray:
+        """Real parameter values (d,) of a design vector (d,)."""
+        from rgmcad.scene.design_space import values_from_vector
+
+        return values_from_vector(self.scenario, np.asarray(x, dtype=float))
+
+    def validity(self, X: np.ndarray) -> np.ndarray:
+        """(n,) bool: whether each row of ``X`` (n, d) is physically valid (the exact test of
+        :func:`~rgmcad.sim.validity.check_validity`, run on all rows at once)."""
+        if self._tester is None:
+            from rgmcad.sim.validity import LayoutValidity
+
+            self._tester = LayoutValidity(self.scenario, self.parts, cache=self.cache)
+        X = np.atleast_2d(np.asarray(X, dtype=float))
+        return self._tester(self.low + X * (self.high - self.low))
+
+    def check(self, x):
+        """The full :class:`~rgmcad.sim.validity.Validity` of the design vector ``x`` (d,)."""
+        from rgmcad.scene.bodies import make_scene
+        from rgmcad.sim.validity import check_validity
+
+        return check_validity(make_scene(self.scenario, self.values(x), self.parts),
+                              cache=self.cache)
+
+    def simulate_one(self, x: np.ndarray) -> SimRecord:
+        """Simulate the design vector ``x`` (d,) (the validity test included)."""
+        from rgmcad.sim.run import simulate
+
+        if self._engine is None:
+            from rgmcad.sim.engine import Engine
+
+            self._engine = Engine()
+        r = simulate(self.scenario, self.values(x), self.parts, engine=self._engine,
+                     cache=self.cache)
+        labels = r.labels()
+        events = {e.name: (labels[e.name], e.time) for e in r.events}
+        return SimRecord(r.outcome is not Outcome.INVALID, r.outcome, events,
+                         float(r.wall_time))
+
+    def close(self) -> None:
+        """Disconnect the engine and drop the derived data."""
+        if self._engine is not None:
+            self._engine.close()
+            self._engine = None
+        self.cache.close()
+
+
+def simulate_task(context: ScenarioContext, x: np.ndarray) -> SimRecord:
+    """``context.simulate_one(x)``: a task for :meth:`~rgmcad.runs.executor.Executor.map_context`."""
+    return context.simulate_one(x)
+
+
+def validity_task(context: ScenarioContext, X: np.ndarray) -> np.ndarray:
+    """``context.validity(X)``: a task for :func:`~rgmcad.runs.executor.map_blocks`."""
+    return context.validity(X)
 
 
 @dataclass(frozen=True, eq=False)
@@ -127,6 +205,7 @@ class ScenarioProblem:
     dimension: int = field(init=False)
     event_parents: Mapping[str, tuple[str, ...]] = field(init=False)
     any_joins: frozenset[str] = field(init=False)
+    _context: ScenarioContext | None = field(default=None, init=False, repr=False)
 
     def __post_init__(self):
         object.__setattr__(self, "scenario_path", str(Path(self.scenario_path).resolve()))
@@ -136,56 +215,47 @@ class ScenarioProblem:
         object.__setattr__(self, "event_parents", event_parents(scenario))
         object.__setattr__(self, "any_joins", any_joins(scenario))
 
-    def __getstate__(self):
+    def __getstate__(self):  # the context stays in its process
         return {"scenario_path": self.scenario_path, "build_dir": self.build_dir,
                 "dimension": self.dimension, "event_parents": dict(self.event_parents),
                 "any_joins": self.any_joins}
 
     def __setstate__(self, state):
+        object.__setattr__(self, "_context", None)
         for k, v in state.items():
             object.__setattr__(self, k, v)
 
+    def context(self) -> ScenarioContext:
+        """This process's :class:`ScenarioContext` of the problem, loaded on first use (a
+        worker pool's initializer: ``make_executor(workers, problem.context)``)."""
+        if self._context is None:
+            object.__setattr__(self, "_context",
+                               ScenarioContext.load(self.scenario_path, self.build_dir))
+        return self._context
+
     @property
     def scenario(self):
-        """The loaded :class:`~rgmcad.scene.scenario.Scenario` (cached per process)."""
-        return context(self.scenario_path, self.build_dir)[0]
+        """The loaded :class:`~rgmcad.scene.model.Scenario`."""
+        return self.context().scenario
 
     @property
     def parts(self) -> dict:
-        """Built parts by object name (cached per process)."""
-        return context(self.scenario_path, self.build_dir)[1]
+        """Built parts by object name."""
+        return self.context().parts
 
     def values(self, x) -> np.ndarray:
         """Real parameter values (d,) of a design vector (d,)."""
-        from rgmcad.scene.design_space import values_from_vector
-
-        return values_from_vector(self.scenario, np.asarray(x, dtype=float))
-
-    def _validity(self, x):
-        from rgmcad.scene.bodies import make_scene
-        from rgmcad.sim.validity import check_validity
-
-        return check_validity(make_scene(self.scenario, self.values(x), self.parts))
+        return self.context().values(x)
 
     # --- Problem protocol -----------------------------------------------------------------
 
     def validity(self, X: np.ndarray) -> np.ndarray:
-        """(n,) bool: whether each row of ``X`` (n, d) is physically valid (the exact test of
-        :func:`~rgmcad.sim.validity.check_validity`, run on all rows at once)."""
-        from rgmcad.scene.design_space import bounds
-
-        X = np.atleast_2d(np.asarray(X, dtype=float))
-        key = (self.scenario_path, self.build_dir)
-        if key not in _TESTERS:
-            from rgmcad.sim.validity import LayoutValidity
-
-            _TESTERS[key] = LayoutValidity(self.scenario, self.parts)
-        low, high = bounds(self.scenario)
-        return _TESTERS[key](low + X * (high - low))
+        """(n,) bool: whether each row of ``X`` (n, d) is physically valid."""
+        return self.context().validity(X)
 
     def penetration(self, x: np.ndarray) -> float:
         """Summed penetration depth (m) beyond the validity tolerance; 0 iff valid."""
-        return float(self._validity(np.asarray(x, dtype=float).reshape(-1)).penetration)
+        return float(self.context().check(np.asarray(x, dtype=float).reshape(-1)).penetration)
 
     def simulate(self, X: np.ndarray) -> list:
         """One :class:`Label` per row of ``X`` (n, d), in order."""
@@ -199,9 +269,4 @@ class ScenarioProblem:
 
     def simulate_one(self, x: np.ndarray) -> SimRecord:
         """Simulate the design vector ``x`` (d,) (the validity test included)."""
-        from rgmcad.sim.run import simulate
-
-        r = simulate(self.scenario, self.values(x), self.parts)
-        labels = r.labels()
-        events = {e.name: (labels[e.name], e.time) for e in r.events}
-        return SimRecord(r.outcome.value != "invalid", r.outcome.value, events, float(r.wall_time))
+        return self.context().simulate_one(x)

@@ -39,6 +39,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from rgmcad.runs.problem import SimRecord
+from rgmcad.sim.run import Outcome
 
 __all__ = ["ETA", "EPS_GRID", "RobustnessCurve", "ball_samples", "wilson_interval",
            "local_robustness", "plot_curves"]
@@ -203,7 +204,7 @@ def local_robustness(
     records = simulate(X) if len(X) else []
     if on_progress is not None:
         on_progress("simulated", len(records))
-    success = np.array([r.outcome == "success" for r in records], dtype=bool)
+    success = np.array([r.outcome is Outcome.SUCCESS for r in records], dtype=bool)
     bounds = np.cumsum([0, *sizes])
     succ = np.array([success[bounds[k]:bounds[k + 1]].sum() for k in range(len(eps))])
     counts = np.asarray(sizes)

@@ -19,7 +19,8 @@ simulates only the rest. The simulator is deterministic too, so a replayed label
 label a new simulation would give. A ``kill -9`` loses at most the simulations in flight; a
 line cut short by the kill has no final newline and is dropped (and cut off the file) when the
 store is opened again. A power cut or system crash can lose the batch being simulated (what
-was written but not yet fsynced); one fsync per simulation cost 1.3 s of a 80 s BALLRUN run.
+was written but not yet fsynced): one fsync per batch, because one per simulation cost too
+much (docs/decisions.md).
 """
 
 from __future__ import annotations
@@ -38,7 +39,7 @@ import numpy as np
 
 from rgmcad.errors import RunDirectoryError
 from rgmcad.runs.executor import map_blocks
-from rgmcad.runs.problem import SimRecord
+from rgmcad.runs.problem import SimRecord, simulate_task, validity_task
 
 __all__ = ["RunStore", "RecordedProblem", "run_identity", "SETTINGS", "SIMULATIONS", "RESULT",
            "MODEL"]
@@ -90,7 +91,7 @@ class RunStore:
 
     Raises
     ------
-    ScenarioError
+    RunDirectoryError
         The directory belongs to another run (other scenario, scenario file, seed or
         settings), or another process has it open.
     """
@@ -181,11 +182,6 @@ class RunStore:
         """fsync the simulations written so far."""
         os.fsync(self._file.fileno())
 
-    def simulations(self) -> list[dict]:
-        """Every stored line, in order (for reports and plots)."""
-        path = self.directory / SIMULATIONS
-        return [json.loads(line) for line in path.read_bytes().splitlines() if line.strip()]
-
     # --- results -----------------------------------------------------------------------------
 
     @property
@@ -204,10 +200,6 @@ class RunStore:
         path = self.directory / MODEL
         _write_atomic(path, pickle.dumps(model, protocol=pickle.HIGHEST_PROTOCOL))
         return path
-
-    def load_model(self):
-        with open(self.directory / MODEL, "rb") as f:
-            return pickle.load(f)
 
     def close(self) -> None:
         if not self._file.closed:
@@ -253,10 +245,12 @@ class RecordedProblem:
     Parameters
     ----------
     problem : ScenarioProblem
-        Picklable; its ``simulate_one`` and ``validity`` run on the executor.
+        The problem in this process (validity tests here, penetration, the causal graph).
     store : RunStore
     executor : Executor
-        See :mod:`rgmcad.runs.executor`.
+        See :mod:`rgmcad.runs.executor`; its context (the problem's
+        :class:`~rgmcad.runs.problem.ScenarioContext` in each process) simulates and tests
+        validity: ``make_executor(workers, problem.context)``.
     on_simulation : callable, optional
         ``on_simulation(record, replayed)`` after every simulation, stored or new.
 
@@ -282,9 +276,10 @@ class RecordedProblem:
     def validity(self, X: np.ndarray) -> np.ndarray:
         # While simulations are in flight the pool is busy and this process is waiting:
         # testing here costs a millisecond, in the pool a wait for the batch ahead.
-        if self._in_flight:
+        X = np.atleast_2d(np.asarray(X, dtype=float))
+        if self._in_flight or min(len(X), self.executor.workers) <= 1:
             return np.asarray(self.problem.validity(X), dtype=bool)
-        return map_blocks(self.executor, self.problem.validity, X)
+        return map_blocks(self.executor, validity_task, X)
 
     def penetration(self, x: np.ndarray) -> float:
         return self.problem.penetration(x)
@@ -306,7 +301,7 @@ class RecordedProblem:
             if r is None:
                 todo.setdefault(_key(X[i]), i)
         rows = list(todo.values())
-        results = self.executor.map(self.problem.simulate_one, [X[i] for i in rows])
+        results = self.executor.map_context(simulate_task, [X[i] for i in rows])
         self._in_flight += 1
 
         def wait() -> list[SimRecord]:

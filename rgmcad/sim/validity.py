@@ -282,9 +282,8 @@ class LayoutValidity:
     tolerance).valid``, computed with the same tests in the same terms. The poses, the plane
     bounds and the box pruning are vectorised over layouts; only the pairs whose oriented boxes
     overlap get an exact test, and a layout's tests stop at its first penetration. A sampler
-    tests thousands of random layouts per run, most of them invalid: on 3072 Sobol layouts
-    this is 4 to 50 times faster than one scene at a time (BALLRUN 0.17 against 2.1 ms per
-    layout, SIMPLE 0.02 against 1.0 ms).
+    tests thousands of random layouts per run, most of them invalid: this is several times
+    faster than one scene at a time (figures in docs/decisions.md).
 
     Parameters
     ----------
@@ -326,7 +325,7 @@ class LayoutValidity:
         # made of boxes penetrate when some point lies more than tolerance / 2 deep inside a
         # box of each: the intersection then holds a ball of diameter > tolerance, so it is
         # thicker than that in every direction. Only the pairs without such a point go on to
-        # manifold3d. On BALLRUN's Sobol layouts this halves the cost of a test.
+        # manifold3d, the costly test.
         boxes = [_box_pieces(b.built, self.cache) for b in self.solids]
         primitive = [all(isinstance(q, _PRIMITIVES) for q in b.built.pieces) for b in self.solids]
         self.shortcuts: list[tuple | None] = []

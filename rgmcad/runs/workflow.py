@@ -1,0 +1,377 @@
+"""The workflows behind ``rgmcad optimize`` and ``rgmcad evaluate``.
+
+:func:`optimize_scenario`: learn a scenario's success probability and refine the most robust
+layout (paper sections 5-7) in a run directory that survives interruptions
+(:mod:`rgmcad.runs.store`), let the simulator choose the layout to hand out
+(:mod:`rgmcad.learning.verify`), and write the run's outputs: ``layout.json`` (placement
+tolerances in real units), ``start.json``, ``result.json`` (written last: the run is
+finished), ``report.md`` and its plots (:mod:`rgmcad.runs.report`).
+
+:func:`evaluate_layout`: a layout's local and global robustness by simulation
+(:mod:`rgmcad.runs.robustness`) and its plot.
+
+Both spread simulations over a process pool (:mod:`rgmcad.runs.executor`) and report
+progress to a :class:`RunProgress`; neither prints.
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from rgmcad.parts.store import DEFAULT_BUILD_DIR
+from rgmcad.runs.executor import make_executor, map_blocks
+from rgmcad.runs.problem import (
+    ScenarioProblem,
+    SimRecord,
+    scenario_digest,
+    simulate_task,
+    validity_task,
+)
+from rgmcad.runs.report import (
+    PROGRESS_PLOT,
+    REPORT_FILE,
+    SLICE_PLOT,
+    plot_progress,
+    plot_slice,
+    report_markdown,
+)
+from rgmcad.runs.store import (
+    MODEL,
+    SETTINGS,
+    SIMULATIONS,
+    RecordedProblem,
+    RunStore,
+    run_identity,
+)
+from rgmcad.sim.run import Outcome
+
+__all__ = ["LAYOUT_FILE", "START_FILE", "RunProgress", "OptimizationRun", "default_run_dir",
+           "optimize_scenario", "evaluate_layout"]
+
+LAYOUT_FILE = "layout.json"
+START_FILE = "start.json"
+
+
+class RunProgress:
+    """Where a workflow stands, for a progress display; every method does nothing here."""
+
+    def stage(self, name: str, total: int | None = None) -> None:
+        """A stage begins (``"exploration"``, ``"active:<event>"``, ``"verification"``,
+        ``"validity"``, ``"simulation"``...), of ``total`` items when known."""
+
+    def simulated(self, record: SimRecord, replayed: bool = False) -> None:
+        """One simulation finished (or was read back from the run directory)."""
+
+    def tested(self, n: int) -> None:
+        """``n`` more layouts were tested for validity."""
+
+
+@dataclass(frozen=True)
+class OptimizationRun:
+    """What :func:`optimize_scenario` did.
+
+    Attributes
+    ----------
+    run_dir : Path
+    summary : dict
+        The run's ``result.json``.
+    finished_before : bool
+        The run directory held a finished run: nothing was computed.
+    wall_time : float
+        Seconds this call took.
+    """
+
+    run_dir: Path
+    summary: dict
+    finished_before: bool
+    wall_time: float
+
+    @property
+    def verified(self) -> bool:
+        return bool(self.summary["verified"])
+
+
+def default_run_dir(scenario_name: str, budget: str, seed: int) -> Path:
+    """``runs/SCENARIO-sSEED``, or ``runs/SCENARIO-BUDGET-sSEED`` for another budget."""
+    tag = "" if budget == "default" else f"-{budget}"
+    return Path("runs") / f"{scenario_name}{tag}-s{seed}"
+
+
+def optimize_scenario(
+    scenario_path: str | Path, *, seed: int = 0, budget: str = "default", settings=None,
+    run_dir: str | Path | None = None, workers: int | None = None,
+    build_dir: str | Path = DEFAULT_BUILD_DIR, progress: RunProgress | None = None,
+    recorded: Callable[..., RecordedProblem] = RecordedProblem,
+) -> OptimizationRun:
+    """Optimise a scenario's layout in a run directory, or continue an interrupted run there.
+
+    Parameters
+    ----------
+    scenario_path : the scenario file.
+    seed : of every random choice.
+    budget : name of the settings (:func:`~rgmcad.learning.settings.budget`); part of the
+        default run directory's name and of the summary.
+    settings : LearningSettings, optional
+        Instead of the budget's.
+    run_dir : default :func:`default_run_dir`. A directory made for other settings is
+        refused (:class:`~rgmcad.errors.RunDirectoryError`).
+    workers : simulation processes (None: every CPU); results do not depend on it.
+    recorded : ``recorded(problem, store, executor, on_simulation)``: the problem the learner
+        sees (a subclass of :class:`~rgmcad.runs.store.RecordedProblem` that times its calls,
+        say).
+    """
+    start = time.perf_counter()
+    from rgmcad.learning.settings import budget as budget_settings
+    from rgmcad.scene.loader import load_scenario
+
+    progress = progress or RunProgress()
+    scenario = load_scenario(scenario_path)
+    settings = budget_settings(budget) if settings is None else settings
+    identity = run_identity(scenario.name, scenario_digest(scenario_path), seed, settings)
+    run_dir = Path(run_dir) if run_dir else default_run_dir(scenario.name, budget, seed)
+    with RunStore(run_dir, identity) as store:
+        if store.finished and (run_dir / LAYOUT_FILE).exists():
+            return OptimizationRun(run_dir, store.read_result(), True,
+                                   time.perf_counter() - start)
+        from rgmcad.learning import learn_and_optimize
+        from rgmcad.learning.parallel import jobs_on
+
+        problem = ScenarioProblem(scenario_path, build_dir)
+        executor = make_executor(workers, problem.context)
+        try:
+            learner_problem = recorded(problem, store, executor, progress.simulated)
+            # The pool is idle while the models train: their grid searches, calibration folds
+            # and mutual information estimates run there (never changing the result).
+            with jobs_on(executor):
+                result = learn_and_optimize(learner_problem, settings, seed,
+                                            on_progress=lambda p: progress.stage(p.stage))
+            progress.stage("verification")
+            chosen = _verify(learner_problem, result)
+        finally:
+            executor.close()
+        summary = _write_outputs(scenario, store, learner_problem, result, chosen,
+                                 time.perf_counter() - start, seed, budget)
+    return OptimizationRun(run_dir, summary, False, time.perf_counter() - start)
+
+
+def _verify(recorded, result) -> dict:
+    """The layout to hand out: see :mod:`rgmcad.learning.verify`."""
+    from rgmcad.learning import verify_layout
+
+    v = verify_layout(result.model, result.x, result.X, result.labels, recorded.simulate,
+                      recorded.validity, result.settings)
+    c = v.chosen
+    optimum = Outcome(v.optimum.outcome)
+    if not v.verified:
+        source = (f"optimum, unverified: its simulation gave {optimum} and no "
+                  "simulated layout succeeded")
+    elif c.source == "optimum":
+        source = "optimum"
+    elif optimum is not Outcome.SUCCESS:
+        source = f"{c.source} (the optimum's simulation gave {optimum})"
+    else:
+        source = f"{c.source} (more robust than the optimum under placement errors)"
+    return {"x": c.x, "source": source, "verified": v.verified,
+            "is_optimum": c.source == "optimum", "optimum_outcome": optimum.value,
+            "n_simulations": v.n_simulations,
+            "candidates": [{"source": t.source, "vector": [float(u) for u in t.x],
+                            "success_rate": t.success_rate, "valid_copies": t.n_valid}
+                           for t in v.candidates]}
+
+
+def influence(model, x: np.ndarray) -> np.ndarray:
+    """(d,) range of the predicted success along each axis through ``x`` (d,)."""
+    t = np.linspace(0.0, 1.0, 101)
+    out = np.zeros(len(x))
+    for j in range(len(x)):
+        P = np.repeat(x[None, :], len(t), axis=0)
+        P[:, j] = t
+        p = model.success_proba(P)
+        out[j] = p.max() - p.min()
+    return out
+
+
+def _at_layout(model, result, chosen: dict, x: np.ndarray):
+    """(per-event probabilities, probability, weakest requirement, its probability, (d, 2)
+    normalised tolerances) at the chosen layout: the learner's own numbers at its optimum."""
+    from rgmcad.learning import placement_tolerance
+
+    if chosen["is_optimum"]:
+        per_event, probability = dict(result.event_probabilities), result.probability
+        weakest, tol = result.weakest_event, result.tolerances
+    else:
+        per_event = {e: float(p[0]) for e, p in model.event_probabilities(x).items()}
+        probability = float(model.success_proba(x)[0])
+        weakest, _ = model.weakest_link(x)
+        tol = placement_tolerance(model, x, result.settings)
+    weakest_probability = 1.0 if weakest is None else float(
+        model.requirement_probabilities(x.reshape(1, -1))[weakest][0])
+    return per_event, probability, weakest, weakest_probability, tol
+
+
+def _write_json(path: Path, data) -> Path:
+    path.write_text(json.dumps(data, indent=1) + "\n")
+    return path
+
+
+def _write_outputs(scenario, store, recorded, result, chosen, wall_time, seed, budget) -> dict:
+    from rgmcad.scene.design_space import bounds
+    from rgmcad.scene.layout_files import layout_document
+
+    run_dir = store.directory
+    model = result.model
+    x = np.asarray(chosen["x"], dtype=float)
+    low, high = bounds(scenario)
+    per_event, probability, weakest, weakest_probability, tol = _at_layout(
+        model, result, chosen, x)
+    tolerances = {f.name: [float(tol[j, 0] * (high[j] - low[j])),
+                           float(tol[j, 1] * (high[j] - low[j]))]
+                  for j, f in enumerate(scenario.free)}
+    spread = influence(model, x)
+    store.save_model(model)
+    layout = _write_json(run_dir / LAYOUT_FILE, layout_document(
+        scenario, x, probability=probability, event_probabilities=per_event,
+        weakest_event=weakest, tolerances=tolerances, source=chosen["source"],
+        verified=chosen["verified"]))
+    start = _write_json(run_dir / START_FILE, layout_document(
+        scenario, result.x_start, probability=float(result.probability_start),
+        source="the explored sample with the highest predicted success (start of the "
+               "refinement)"))
+    n_total = result.n_total_simulations + chosen["n_simulations"]
+    n_success = sum(lab.success for lab in result.labels)
+    summary = {
+        "scenario": scenario.name,
+        "run": str(run_dir),
+        "layout": str(layout),
+        "vector": [float(v) for v in x],
+        "values": {f.name: float(v) for f, v in zip(scenario.free, low + x * (high - low),
+                                                     strict=True)},
+        "probability": probability,
+        "event_probabilities": per_event,
+        "weakest_event": weakest,
+        "weakest_probability": weakest_probability,
+        "tolerances": tolerances,
+        "influence": {f.name: float(v) for f, v in zip(scenario.free, spread, strict=True)},
+        "verified": chosen["verified"],
+        "source": chosen["source"],
+        "optimum": {"vector": [float(v) for v in result.x], "probability": result.probability,
+                    "outcome": chosen["optimum_outcome"]},
+        "start": {"layout": str(start), "vector": [float(v) for v in result.x_start],
+                  "probability": float(result.probability_start)},
+        "optimization": {"objective_start": result.optimization.objective_start,
+                         "objective": result.optimization.objective,
+                         "evaluations": result.optimization.n_evaluations,
+                         "status": result.optimization.status},
+        "simulations": n_total,
+        "simulations_by_stage": {**result.n_simulations,
+                                 "verification": chosen["n_simulations"]},
+        "verification": chosen["candidates"],
+        "verify_noise": result.settings.verify_noise,
+        "successes": int(n_success),
+        "discarded": result.n_discarded,
+        "simulated_now": recorded.n_simulated,
+        "replayed": recorded.n_replayed,
+        "simulation_seconds": float(sum(r.seconds for r in store.records.values())),
+        "wall_time": wall_time,
+        "factors": {e: _factor(scenario, result, e) for e in model.events},
+        "seed": seed,
+        "budget": budget,
+        "files": {"layout": LAYOUT_FILE, "start": START_FILE, "report": REPORT_FILE,
+                  "slice_plot": SLICE_PLOT, "progress_plot": PROGRESS_PLOT, "model": MODEL,
+                  "simulations": SIMULATIONS, "settings": SETTINGS},
+    }
+    plot_slice(scenario, model, x, spread, run_dir / SLICE_PLOT)
+    plot_progress(result, run_dir / PROGRESS_PLOT)
+    (run_dir / REPORT_FILE).write_text(report_markdown(scenario, summary, low, high))
+    store.write_result(summary)  # last: its presence marks the run finished
+    return summary
+
+
+def _factor(scenario, result, event) -> dict:
+    m = result.model.models[event]
+    names = [f.name for f in scenario.free]
+    out = {"model": getattr(m, "reason", None) or "svm",
+           "dims": [names[j] for j in m.dims_] if not m.is_constant else []}
+    a = result.analyses.get(event)
+    if a is not None:
+        out.update(samples=a.n_samples, success_rate=None if np.isnan(a.success_rate)
+                   else a.success_rate, quasi_deterministic=a.quasi_deterministic)
+    if event in result.accuracy:
+        out["accuracy"] = [float(v) for v in result.accuracy[event]]
+    return out
+
+
+# --- evaluate ---------------------------------------------------------------------------------
+
+
+def evaluate_layout(
+    scenario_path: str | Path, layout: str, *, samples: int = 50, seed: int = 0,
+    workers: int | None = None, build_dir: str | Path = DEFAULT_BUILD_DIR,
+    plot: str | Path | None = None, progress: RunProgress | None = None,
+) -> dict:
+    """Local robustness of a layout at every radius and its global robustness rho_g
+    (:func:`~rgmcad.runs.robustness.local_robustness`), and their plot.
+
+    Parameters
+    ----------
+    layout : a named layout of the scenario or a layout file.
+    samples : valid layouts simulated per radius.
+    plot : the PNG to write; default: beside a layout file, else
+        ``robustness-SCENARIO-LAYOUT.png`` in the working directory.
+
+    Returns
+    -------
+    dict
+        What ``rgmcad evaluate --json`` prints.
+    """
+    from rgmcad.runs.robustness import local_robustness, plot_curves
+    from rgmcad.scene.design_space import vector_from_values
+    from rgmcad.scene.layout_files import resolve_layout
+    from rgmcad.scene.loader import load_scenario
+
+    progress = progress or RunProgress()
+    scenario = load_scenario(scenario_path)
+    name, values = resolve_layout(scenario, layout, None)
+    x = vector_from_values(scenario, values)
+    if plot is None:
+        plot = (Path(layout).with_name(f"{Path(layout).stem}-robustness.png")
+                if Path(layout).is_file() else Path(f"robustness-{scenario.name}-{name}.png"))
+    start = time.perf_counter()
+    problem = ScenarioProblem(scenario_path, build_dir)
+    executor = make_executor(workers, problem.context)
+    progress.stage("validity")
+
+    def validity(X):
+        here = min(len(X), executor.workers) <= 1
+        ok = problem.validity(X) if here else map_blocks(executor, validity_task, X)
+        progress.tested(len(X))
+        return ok
+
+    def simulate(X):
+        progress.stage("simulation", len(X))
+        out = []
+        for r in executor.map_context(simulate_task, list(X)):
+            out.append(r)
+            progress.simulated(r)
+        return out
+
+    try:
+        curve = local_robustness(x, validity, simulate, samples, seed)
+    finally:
+        executor.close()
+    wall = time.perf_counter() - start
+    plot_curves({name: curve}, plot, title=f"{scenario.name}: local robustness of {name}")
+    return {
+        "scenario": scenario.name, "layout": name, "vector": [float(v) for v in x],
+        "rho_g": curve.rho_g, "rho_g_interval": [curve.rho_g_low, curve.rho_g_high],
+        "curve": curve.curve(), "counts": [int(c) for c in curve.counts],
+        "simulations": curve.simulations, "validity_tests": curve.validity_tests,
+        "samples_per_radius": samples, "eta": curve.eta, "seed": seed,
+        "wall_time": wall, "plot": str(plot),
+    }
