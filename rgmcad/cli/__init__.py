@@ -2,7 +2,7 @@
 
 Commands come from one table (:data:`COMMANDS`): each names the module of ``rgmcad.cli`` that
 configures its arguments (``configure``) and runs it (``run``: load, one library call, print).
-Modules are imported only for the command that runs, so the CLI starts fast. Every error of
+Command modules import the library inside ``run``, so the CLI starts fast. Every error of
 :mod:`rgmcad.errors` prints one line naming the file or flag, the key and what is allowed, and
 exits with status 2.
 """
@@ -15,9 +15,7 @@ import logging
 import sys
 
 from rgmcad.errors import RgmcadError
-
-DEFAULT_BUILD_DIR = "build/parts"
-"""The part cache, relative to the working directory (``--build-dir`` moves it)."""
+from rgmcad.parts.store import DEFAULT_BUILD_DIR
 
 COMMANDS: dict[str, tuple[str, str]] = {
     "simulate": ("simulate", "simulate one layout and print the event timeline"),
@@ -35,13 +33,10 @@ COMMANDS: dict[str, tuple[str, str]] = {
 }
 """Command -> (module of rgmcad.cli, help). Multi-word commands are sub-commands."""
 
-_ENTRY: dict[str, tuple[str, str]] = {}
-
-
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="rgmcad", description="Design chain-reaction "
                                      "contraptions that work when built by hand.")
-    parser.add_argument("--build-dir", default=DEFAULT_BUILD_DIR,
+    parser.add_argument("--build-dir", default=str(DEFAULT_BUILD_DIR),
                         help=f"where built parts are cached (default: {DEFAULT_BUILD_DIR})")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     groups: dict[str, argparse._SubParsersAction] = {}
@@ -57,9 +52,8 @@ def build_parser() -> argparse.ArgumentParser:
             p = groups[words[0]].add_parser(words[1], help=help_text, description=help_text)
         # command modules import the library inside ``run``: importing them all is cheap
         module = importlib.import_module(f"rgmcad.cli.{module_name}")
-        configure, run = _ENTRY.get(name, ("configure", "run"))
-        getattr(module, configure)(p)
-        p.set_defaults(run=getattr(module, run))
+        module.configure(p)
+        p.set_defaults(run=module.run)
     return parser
 
 
