@@ -220,7 +220,7 @@ class SuccessClassifier(ClassifierMixin, BaseEstimator):
 
     def _check(self, X) -> np.ndarray:
         check_is_fitted(self, "classes_")
-        # not check_array: its validation was 0.8 s of a BALLRUN run (3000 small calls)
+        # not check_array: too slow over a run's thousands of small calls (docs/decisions.md)
         X = np.atleast_2d(np.asarray(X, dtype=float))
         if X.ndim != 2 or not np.isfinite(X).all():
             raise ValueError("X must be a finite (n, d) array")

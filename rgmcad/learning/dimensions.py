@@ -80,8 +80,8 @@ def select_dimensions(
     another (the landing point of a ball depends on the track's height *given* its x).
     When no single dimension passes although all of them together carry information (a
     permutation test of the label against all columns at the 5 % level), every dimension
-    is kept: on one SIMPLE run "first domino topples" scored 0.036, 0, 0 nats per dimension
-    and 0.27 on all three, and was left without a model before this rule.
+    is kept, so that an event decided only by its dimensions together still gets a model
+    (see docs/decisions.md, "Event dimensions: joint selection against a permutation floor").
 
     ``"marginal"``: the authors' rule, ``MI_j > mi_relative_threshold * max(MI)`` on each
     dimension alone, and ``MI_j`` above the largest MI of any dimension against the label

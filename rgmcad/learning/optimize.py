@@ -16,19 +16,11 @@ penetration, ``optimizer="slsqp"`` nlopt's SLSQP with the same gradients (the au
 method, via SciPy). Whatever the method, every evaluated point is recorded and the result is
 the best one whose penetration was exactly 0 (the start point at worst).
 
-Why COBYLA: measured on a 2-D disc region (radius 0.3) learnt from 300 samples, starting
-0.03 inside its boundary, 3 seeds. Unconstrained, all three methods reached the centre
-(distance to the boundary 0.289-0.296 of at most 0.3). With an invalid ball of radius 0.12
-at the centre (constrained optimum at distance 0.18): with the paper's objective, COBYLA
-returned a valid point at 0.1800 in all 3 runs with 30-121 objective and 27-115
-penetration evaluations; SLSQP also reached 0.1800 but needed 128-518 penetration calls
-and once hit the evaluation cap; AUGLAG + L-BFGS stopped with an nlopt failure in all 3
-runs, once far from the optimum (0.03). With placement errors of 0.05: COBYLA 0.1800 in
-39-62 evaluations every time, SLSQP 0.1800 but once at the evaluation cap (575
-penetration calls), AUGLAG 0.177-0.180 and an nlopt failure every time. The penetration
-is flat (zero gradient) on the valid side, so gradient methods see the constraint only
-after crossing it; COBYLA's linear models of the constraint, built from points on both
-sides, do not depend on derivatives.
+Why COBYLA: the penetration is flat (zero gradient) on the valid side, so gradient methods
+see the constraint only after crossing it; COBYLA's linear models of the constraint, built
+from points on both sides, do not depend on derivatives. It reached the constrained optimum
+reliably and with the fewest penetration calls of the three; see docs/decisions.md,
+"Refinement with COBYLA, averaged over placement errors".
 """
 
 from __future__ import annotations

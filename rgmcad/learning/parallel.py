@@ -4,9 +4,10 @@ information estimates.
 By default they run in this process, or in joblib's processes when ``n_jobs`` > 1. Inside
 ``with jobs_on(executor):`` they go to that executor (:mod:`rgmcad.runs.executor`) instead.
 ``rgmcad optimize`` lends the learner its simulation pool this way: the pool is idle while
-the models train, and its workers were forked after scikit-learn was imported. joblib's
-processes cost about 2 s of a BALLRUN run to start, mostly importing scikit-learn again, and
-they kept that memory for the whole run.
+the models train, and its workers were forked after scikit-learn was imported, while joblib's
+processes are slow to start (they import scikit-learn again) and keep that memory for the
+whole run. See docs/decisions.md, "Learner overheads: jobs on the simulation pool, no
+check_array".
 
 Where a job runs never changes its result: every job is a pure function of its arguments.
 """

@@ -46,14 +46,11 @@ class LearningSettings:
     exploration_lag : int, default 1
         Batches of exploration that simulate while the next one is drawn: batch k is drawn
         from the results of the batches before k - lag (0 = the paper's sequential loop,
-        where every batch waits for the one before). In the sequential loop the pool sat
-        idle while the last simulation of each batch of 10 finished and while the next
-        batch was drawn and tested; on BALLRUN (seed 0, 2 workers) the workers simulated
-        88 % of the exploration's wall time (35 ms per simulation), with lag 1 98 % (30 ms).
-        One batch of 10 out of 1000 or more makes no measurable difference to what is
-        found: over the acceptance runs (3 seeds each) the optimised layouts' mean rho_g
-        was 0.450 on SIMPLE and 0.221 on BALLRUN, against 0.447 and 0.216 with lag 0.
-        The result depends on the lag, never on timing or the number of workers.
+        where every batch waits for the one before). Why: the pool no longer sits idle
+        while a batch's last simulation finishes and the next batch is drawn, and one batch
+        of lag makes no measurable difference to what is found. The result depends on the
+        lag, never on timing or the number of workers. See docs/decisions.md, "Exploration
+        overlap".
     exploration_variance : float, default 0.01
         sigma of Eq. 1: each mixture component has covariance ``sigma * I``. It is a
         **variance** (standard deviation 0.1), as in the authors' code; the paper's notation
@@ -72,9 +69,9 @@ class LearningSettings:
         as in the authors' ``train_svc``.
     svm_class_weights : tuple, default (None,)
         Class weightings tried in the grid search. The authors also tried ``"balanced"``;
-        since the search maximises accuracy, that weighting almost never wins: on the
-        18 event data sets of six SIMPLE and BALLRUN runs it won once, by 0.0012, and it
-        doubled the search time. Add ``"balanced"`` to try it.
+        since the search maximises accuracy, that weighting almost never wins, and it
+        doubles the search time. Add ``"balanced"`` to try it. See docs/decisions.md,
+        "Grid search: halving kept off, searches only when data grew".
     cv_folds : int, default 3
         Stratified folds of the grid search; its best mean accuracy is the model's
         "accuracy" (paper section 5.2). Unlike the authors' code, the folds are shuffled
@@ -89,19 +86,11 @@ class LearningSettings:
         setting is first scored on the same folds with each training part cut to a
         stratified subset of ``eta**-R`` of its rows, the best ``1 / eta`` of them again on
         ``eta`` times more rows, up to the whole training parts, where the choice is made
-        (test parts always whole). With eta = 3, on 13 recorded searches (SIMPLE and
-        BALLRUN, two seeds each, BRANCHING; 143 to 1660 samples, 49 settings, 3 folds) it
-        chose what the exhaustive search chose, and the six BALLRUN searches took 6.8 s
-        instead of 18.9 s (a third of a run's time outside simulation). Why it is not the
-        default: in full BALLRUN runs it chose another C and gamma for one event of seed 1
-        (out-of-fold accuracy 0.876 against 0.875), the run then ended on another layout,
-        and its rho_g was 0.090 against 0.226 (seeds 0 and 2: 0.209 against 0.195, and
-        equal). Runs differ that much from a small change of a model, so three seeds cannot
-        tell whether halving costs robustness; until a larger study does, the default keeps
-        the search that met the acceptance figures. (Those timings predate the grid search's
-        kernel computed once per fold and gamma: since then the three searches of a BALLRUN
-        seed-0 run take 6.2 s exhaustive and 3.6 s halved, and the halving chose C = 100
-        instead of 1000 for one of them, at 0.898 against 0.903 accuracy.)
+        (test parts always whole). Why it is off: it is faster and mostly chooses what the
+        exhaustive search chooses, but a run can end on another layout after a small change
+        of one model, so three seeds cannot tell whether halving costs robustness; until a
+        larger study does, the default keeps the search that met the acceptance figures.
+        See docs/decisions.md, "Grid search: halving kept off, searches only when data grew".
     search_min_train : int, default 100
         Fewest training rows per fold in the first rung; ``R`` is the largest number of
         rungs that keeps at least this many (so small data sets get the exhaustive search).
@@ -109,11 +98,10 @@ class LearningSettings:
         Added by rgmcad: during active learning the grid search is run again only once the
         training data has grown by more than this fraction since the last search; other
         refits keep the chosen C, gamma and class weighting. The authors searched at every
-        iteration. The searches were 98 % of the time outside simulation of a BALLRUN run,
-        where the queries add at most 50 points to about 1000; on the tests' disc oracle,
-        where 50 queries nearly double 60 initial points, the accuracy gain of active
-        learning over uniform samples was +0.024 (9 seeds, 9 wins) with this rule, +0.012
-        (8 wins) when never searching again.
+        iteration. Why: the searches took nearly all the time outside simulation while an
+        iteration's queries add little to the data; searching again once the data has grown
+        keeps more of active learning's gain than never searching again. See
+        docs/decisions.md, "Grid search: halving kept off, searches only when data grew".
     n_jobs : int or None, default None
         joblib processes for the grid searches, calibration folds and mutual information
         estimates, unless an executor is lent with :func:`rgmcad.learning.parallel.jobs_on`
@@ -132,12 +120,9 @@ class LearningSettings:
         of each feature in the training data), SPEC section 5.3; 1.0 is the authors'
         distribution. rgmcad departs from it: on [0, 1]^d, s is about 0.29, so the authors'
         covariance has a standard deviation near 1.9, most draws are clipped onto the faces
-        of the cube, and the queries ended *farther* from the true boundary than uniform
-        samples (median 0.20 vs 0.13 on a 2-D disc in 3-D; 0.24 vs 0.18 on a 3-D box in
-        5-D; 4 seeds, 60-80 initial points, 8 iterations of 10) with no accuracy gain
-        (0.961 vs 0.966, 0.892 vs 0.906). With 0.01 (standard deviation about 0.19 sqrt|f|)
-        the median distance fell to 0.015 and 0.062 and the accuracy rose to 0.991 and
-        0.927; 0.003-0.1 behaved alike.
+        of the cube, and the queries land *farther* from the boundary than uniform samples.
+        With 0.01 (standard deviation about 0.19 sqrt|f|) they land close to it and the
+        accuracy rises. See docs/decisions.md, "Active-learning queries near the boundary".
     factorized : bool, default True
         Learn one conditional model per uncertain event (paper section 6). False learns a
         single model of the global success (the "full" variant of Fig. 16).
@@ -149,14 +134,10 @@ class LearningSettings:
         on the joint mutual information ``I(E; x_S)``, adding the dimension with the largest
         gain while the gain beats the permutation floor below (column permuted).
         ``"marginal"`` (paper and authors): each dimension's own MI against
-        ``mi_relative_threshold``. Why: a parameter can matter only jointly with another.
-        In SIMPLE, whether the ball hits the first domino depends on the track's x, height
-        and roll together; the marginal rule kept x alone (MI 0.30, 0.09, 0.02 nats), and an
-        SVM on x alone reached a cross-validated accuracy of 0.86 against 0.995 on all
-        three, so the optimiser never centred height and roll. Forward selection chose all
-        three. In BALLRUN, "ball enters goblet" got goblet.x alone (accuracy 0.70) against
-        five dimensions by forward selection (0.84); on such noisy one-dimensional data the
-        SVM grid search was also 8x slower. Measured on one run's exploration data of each.
+        ``mi_relative_threshold``. Why: a parameter can matter only jointly with another
+        (whether SIMPLE's ball hits the first domino depends on the track's x, height and
+        roll together), which the per-dimension rule misses. See docs/decisions.md, "Event
+        dimensions: joint selection against a permutation floor".
     mi_relative_threshold : float, default 0.2
         Only with ``mi_selection = "marginal"``. A dimension is kept for an event when its
         mutual information with the event is above ``mi_relative_threshold * max_j MI_j``:
@@ -169,14 +150,12 @@ class LearningSettings:
         permuted this many times and the largest gain any of them reaches is the floor (a
         family-wise null level that adapts to the sample size and class balance; 0
         disables it). For ``"marginal"`` the label is permuted instead (the same null for
-        one dimension alone). The k-NN estimator scores dimensions independent of the label at
-        0.011 on average, 0.05 at the 95th percentile with 300 samples (0.09 with 100),
-        while a dimension that decides the event scores 0.1-0.7. Measured on the tests'
-        6-D chain oracle (15 event datasets x 3 sizes, 100-1000 samples): the relative rule
-        alone selected a spurious dimension in 2 of 45 cases, with this floor in 0 of 45;
-        a fixed floor of 0.05 nats did no better than the relative rule alone. The floor
-        also keeps an event that depends on no dimension from getting noise dimensions
-        (it then gets a constant probability).
+        one dimension alone). Why: the k-NN estimator scores dimensions independent of the
+        label above 0, more so on small samples, so the relative rule alone (or a fixed
+        floor) can keep a spurious dimension. The floor also keeps an event that depends on
+        no dimension from getting noise dimensions (it then gets a constant probability).
+        See docs/decisions.md, "Event dimensions: joint selection against a permutation
+        floor".
     mi_neighbors : int, default 3
         k of the k-NN mutual-information estimator (scikit-learn's and the authors' value).
     share_samples : bool, default True
@@ -203,12 +182,9 @@ class LearningSettings:
         0 is the paper's objective. Why: the calibrated probabilities saturate near 1 a
         short way inside a success region, most steeply for sharp, deterministic
         outcomes, so the paper's objective has almost no gradient there and leaves the
-        layout wherever it first became "certain". Measured on the tests' 6-D chain and
-        3-D oracles (default settings otherwise, 2 seeds each), the true success rate
-        under Gaussian placement errors of 0.05 at the returned layout was 0.55, 0.70,
-        0.84, 0.73 with 0 (one event 0.006 from its boundary) and 0.99, 0.99, 1.00, 1.00
-        with 0.05; 0.02 gave 0.81-0.93, and 0.1 raised the rate at errors of 0.1 further
-        but often used the whole evaluation budget. All returned layouts were valid.
+        layout wherever it first became "certain"; averaged over errors, it rewards layouts
+        that survive them. See docs/decisions.md, "Refinement with COBYLA, averaged over
+        placement errors".
     placement_samples : int, default 32
         Number of placement errors (a quasi-random design, rounded up to a power of two)
         when ``placement_noise > 0``.
@@ -216,8 +192,9 @@ class LearningSettings:
         nlopt method for the constrained refinement. ``"cobyla"`` (LN_COBYLA) handles the
         non-differentiable penetration constraint directly; ``"auglag"`` (LD_AUGLAG around
         LD_LBFGS) uses the analytic objective gradient and finite differences for the
-        penetration. See :mod:`rgmcad.learning.optimize` for the measurements behind the
-        default. The authors used SciPy's SLSQP with finite differences.
+        penetration. Why COBYLA: see :mod:`rgmcad.learning.optimize`; the measurements are in
+        docs/decisions.md, "Refinement with COBYLA, averaged over placement errors". The
+        authors used SciPy's SLSQP with finite differences.
     optimizer_max_eval : int, default 400
         Cap on objective evaluations of the refinement.
     optimizer_xtol : float, default 1e-4
@@ -237,11 +214,8 @@ class LearningSettings:
         Placement errors simulated per candidate (rounded up to a power of two); 0 keeps
         the paper's choice (the optimum if its one simulation succeeds, else the best rated
         simulated success). Why: the refinement maximises the model's prediction, which
-        can be confidently wrong. On BALLRUN (default settings, seeds 0-2) the optimum
-        failed its own simulation once and, where it succeeded, survived the 32 errors in
-        32-33 % of the valid copies against 57-69 % for the best alternative; choosing by
-        simulation raised the mean global robustness rho_g of the returned layout from
-        0.163 to 0.216 (SIMPLE: 0.424 to 0.427), for 71-129 more simulations (4-8 %).
+        can be confidently wrong; choosing by simulation returns more robust layouts for a
+        few more simulations. See docs/decisions.md, "Final choice by simulation".
     verify_noise : float, default 0.05
         Standard deviation (normalised units) of those placement errors, the same as
         ``placement_noise`` by default.
