@@ -136,6 +136,30 @@ def from_pybullet(position, quaternion) -> np.ndarray:
     ])
 
 
+def rotated_z(quaternion, vector) -> float:
+    """World z of ``vector`` (3 floats) rotated by a pybullet (x, y, z, w) quaternion: the third
+    row of :func:`from_pybullet`'s rotation times the vector. Plain floats, for per-step
+    readers."""
+    x, y, z, w = quaternion
+    a, b, c = vector
+    return (2 * (x * z - y * w) * a + 2 * (y * z + x * w) * b
+            + (1 - 2 * (x * x + y * y)) * c)
+
+
+def moved_point(position, quaternion, point) -> tuple[float, float, float]:
+    """``point`` (3 floats) moved by a pybullet position and (x, y, z, w) quaternion, as
+    :func:`from_pybullet`'s transform would move it. Plain floats, for per-step readers."""
+    px, py, pz = position
+    x, y, z, w = quaternion
+    a, b, c = point
+    return (px + (1 - 2 * (y * y + z * z)) * a + 2 * (x * y - z * w) * b
+            + 2 * (x * z + y * w) * c,
+            py + 2 * (x * y + z * w) * a + (1 - 2 * (x * x + z * z)) * b
+            + 2 * (y * z - x * w) * c,
+            pz + 2 * (x * z - y * w) * a + 2 * (y * z + x * w) * b
+            + (1 - 2 * (x * x + y * y)) * c)
+
+
 def transform_points(matrix: np.ndarray, points: np.ndarray) -> np.ndarray:
     """Apply a (4, 4) transform to (n, 3) points."""
     return points @ matrix[:3, :3].T + matrix[:3, 3]

@@ -7,6 +7,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
 PACKAGE = Path(__file__).resolve().parent.parent / "rgmcad"
 
 
@@ -26,3 +28,11 @@ def test_modules_stay_small():
     assert not {p: n for p, n in sizes.items() if n > 450}
     commands = {p: n for p, n in sizes.items() if p.parts[1] == "cli" and p.name != "common.py"}
     assert not {p: n for p, n in commands.items() if n > 130}
+
+
+@pytest.mark.slow
+def test_the_wheel_alone_works_from_another_directory():
+    # builds the wheel, installs it alone in a fresh environment and uses it elsewhere
+    done = subprocess.run([sys.executable, str(PACKAGE.parent / "tools" / "check_wheel.py")],
+                          capture_output=True, text=True, timeout=1800)
+    assert done.returncode == 0, done.stdout + done.stderr[-3000:]

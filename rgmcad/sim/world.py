@@ -27,7 +27,7 @@ from dataclasses import dataclass
 import numpy as np
 import pybullet as pb
 
-from rgmcad.geometry import from_pybullet, invert, to_pybullet
+from rgmcad.geometry import from_pybullet, invert, moved_point, rotated_z, to_pybullet
 from rgmcad.parts.pieces import ConvexPiece, Piece, PlanePiece
 from rgmcad.scene.bodies import Scene, SceneBody
 from rgmcad.scene.model import SimulationSettings
@@ -371,11 +371,10 @@ class World:
             def orientation():
                 return get_state(uid, link, physicsClientId=cid)[1]
 
-        def read():
-            x, y, z, w = orientation()
-            # third row of the rotation matrix of the centre-of-mass frame, times (a, b, c)
-            return (2 * (x * z - y * w) * a + 2 * (y * z + x * w) * b
-                    + (1 - 2 * (x * x + y * y)) * c)
+        direction = (a, b, c)
+
+        def read():  # through the rotation of the centre-of-mass frame
+            return rotated_z(orientation(), direction)
 
         return read
 
@@ -395,14 +394,10 @@ class World:
             def state():
                 return get_state(uid, link, physicsClientId=cid)[:2]
 
+        point = (a, b, c)
+
         def read():
-            (px, py, pz), (x, y, z, w) = state()
-            return (px + (1 - 2 * (y * y + z * z)) * a + 2 * (x * y - z * w) * b
-                    + 2 * (x * z + y * w) * c,
-                    py + 2 * (x * y + z * w) * a + (1 - 2 * (x * x + z * z)) * b
-                    + 2 * (y * z - x * w) * c,
-                    pz + 2 * (x * z - y * w) * a + 2 * (y * z + x * w) * b
-                    + (1 - 2 * (x * x + y * y)) * c)
+            return moved_point(*state(), point)
 
         return read
 
