@@ -14,7 +14,8 @@ import importlib
 import logging
 import sys
 
-from rgmcad.errors import RgmcadError
+from rgmcad.cli.paths import output_dir
+from rgmcad.errors import RgmcadError, UsageError
 from rgmcad.parts.store import DEFAULT_BUILD_DIR
 
 COMMANDS: dict[str, tuple[str, str]] = {
@@ -33,9 +34,28 @@ COMMANDS: dict[str, tuple[str, str]] = {
 }
 """Command -> (module of rgmcad.cli, help). Multi-word commands are sub-commands."""
 
+
+class Parser(argparse.ArgumentParser):
+    """An argument parser whose errors (unknown flag, missing or bad value, bad choice) are
+    one :class:`UsageError` line, not the usage text; sub-parsers are of this class too."""
+
+    def error(self, message: str):
+        command = self.prog.removeprefix("rgmcad").strip()
+        raise UsageError(command, "", f"{' '.join(message.split())} (see {self.prog} --help)")
+
+    def parse_args(self, args=None, namespace=None):
+        args, extra = self.parse_known_args(args, namespace)
+        if extra:  # named with the (sub-)command they were given to
+            words = [w for w in (getattr(args, "command", None),
+                                 getattr(args, "subcommand", None)) if w]
+            Parser(prog=" ".join(["rgmcad", *words])).error(
+                f"unrecognized arguments: {' '.join(extra)}")
+        return args
+
+
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="rgmcad", description="Design chain-reaction "
-                                     "contraptions that work when built by hand.")
+    parser = Parser(prog="rgmcad", description="Design chain-reaction "
+                    "contraptions that work when built by hand.")
     parser.add_argument("--build-dir", default=str(DEFAULT_BUILD_DIR),
                         help=f"where built parts are cached (default: {DEFAULT_BUILD_DIR})")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
@@ -53,21 +73,26 @@ def build_parser() -> argparse.ArgumentParser:
         # command modules import the library inside ``run``: importing them all is cheap
         module = importlib.import_module(f"rgmcad.cli.{module_name}")
         module.configure(p)
-        p.set_defaults(run=module.run)
+        p.set_defaults(run=module.run, uses_build_dir=getattr(module, "USES_BUILD_DIR", True))
     return parser
 
 
 def main(argv: list[str] | None = None) -> int:
     logging.basicConfig(level=logging.WARNING, format="%(levelname)s: %(message)s")
-    args = build_parser().parse_args(argv)
-    if hasattr(args, "scenario"):
-        from rgmcad.shipped import scenario_path
-
-        args.scenario = str(scenario_path(args.scenario))
     try:
+        try:
+            args = build_parser().parse_args(argv)
+        except SystemExit as exc:  # --help
+            return exc.code if isinstance(exc.code, int) else 0
+        if args.uses_build_dir:  # a folder this command may write: checked before the work
+            output_dir(args.build_dir, "--build-dir", writable=False)
+        if hasattr(args, "scenario"):
+            from rgmcad.shipped import scenario_path
+
+            args.scenario = str(scenario_path(args.scenario))
         return args.run(args)
     except RgmcadError as exc:
-        print(f"rgmcad: error: {exc}", file=sys.stderr)
+        print(f"rgmcad: error: {' '.join(str(exc).splitlines())}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         print("rgmcad: interrupted", file=sys.stderr)

@@ -4,9 +4,12 @@ from __future__ import annotations
 
 import sys
 import time
-from pathlib import Path
 
 from rgmcad.cli.common import say
+from rgmcad.cli.paths import output_dir
+
+USES_BUILD_DIR = False
+"""``--out`` (default: ``--build-dir``) is checked here, not by :func:`rgmcad.cli.main`."""
 
 
 def configure(p) -> None:
@@ -23,9 +26,11 @@ def run(args) -> int:
     from rgmcad.scene.loader import load_scenario
     from rgmcad.shipped import scenario_path, shipped_scenarios
 
+    given = args.out is not None
+    out = output_dir(args.out if given else args.build_dir, "--out" if given else "--build-dir",
+                     files=("manifest.json",))
     paths = [scenario_path(p) for p in args.scenarios] or list(shipped_scenarios().values())
     scenarios = [load_scenario(p) for p in paths]
-    out = Path(args.out or args.build_dir)
     bar = tqdm(total=None, unit="part", desc="building parts", file=sys.stderr)
     counts = {"built": 0, "cached": 0}
 
@@ -36,8 +41,10 @@ def run(args) -> int:
         bar.update(1)
 
     t0 = time.perf_counter()
-    parts = build_scenario_parts(scenarios, out, progress=progress, force=args.force)
-    bar.close()
+    try:
+        parts = build_scenario_parts(scenarios, out, progress=progress, force=args.force)
+    finally:
+        bar.close()  # an error then starts a line of its own
     say(f"{len(parts)} parts ({counts['built']} built, {counts['cached']} cached) in "
         f"{time.perf_counter() - t0:.1f} s: {out}/manifest.json")
     return 0

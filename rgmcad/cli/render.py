@@ -2,17 +2,22 @@
 
 from __future__ import annotations
 
-from pathlib import Path
-
 from rgmcad.cli.common import add_layout_args, add_scenario_arg, load_parts_of, load_scenario_arg, say
+from rgmcad.cli.paths import output_file, pixels
+
+MAX_PIXELS = 8192
+"""Largest picture side (8192 x 8192 takes about 3 GB and half a minute on the CPU)."""
+MIN_PIXELS = 16
 
 
 def configure(p) -> None:
     add_scenario_arg(p)
     add_layout_args(p)
     p.add_argument("--out", required=True, metavar="FILE.png")
-    p.add_argument("--width", type=int, default=1024)
-    p.add_argument("--height", type=int, default=768)
+    p.add_argument("--width", type=pixels(MIN_PIXELS, MAX_PIXELS), default=1024,
+                   help=f"pixels, {MIN_PIXELS} to {MAX_PIXELS} (default 1024)")
+    p.add_argument("--height", type=pixels(MIN_PIXELS, MAX_PIXELS), default=768,
+                   help=f"pixels, {MIN_PIXELS} to {MAX_PIXELS} (default 768)")
 
 
 def run(args) -> int:
@@ -20,9 +25,10 @@ def run(args) -> int:
     from rgmcad.scene.layout_files import resolve_layout
     from rgmcad.sim.render import render_png
 
+    out = output_file(args.out, "--out", (".png",))
     scenario = load_scenario_arg(args)
     name, values = resolve_layout(scenario, args.layout, args.vector)
     scene = make_scene(scenario, values, load_parts_of(scenario, args))
-    render_png(scene, scenario.settings, Path(args.out), args.width, args.height)
+    render_png(scene, scenario.settings, out, args.width, args.height)
     say(f"{args.out}: {scenario.name}, layout {name}")
     return 0

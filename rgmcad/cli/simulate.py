@@ -13,8 +13,14 @@ from rgmcad.cli.common import (
     print_table,
     say,
 )
+from rgmcad.cli.paths import output_file, pixels
 
 VIDEO_FPS = 30.0
+VIDEO_SUFFIXES = (".mp4", ".gif")
+MIN_PIXELS, MAX_PIXELS = 16, 4096
+"""Range of a video frame's sides."""
+MAX_VIDEO_BYTES = 2 * 2**30
+"""Most memory the frames of a video may take (they are held until the video is written)."""
 
 
 def configure(p) -> None:
@@ -22,17 +28,30 @@ def configure(p) -> None:
     add_layout_args(p)
     p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
     p.add_argument("--video", metavar="FILE", help="write a video of the run (.mp4 or .gif)")
-    p.add_argument("--width", type=int, default=640)
-    p.add_argument("--height", type=int, default=480)
+    size = pixels(MIN_PIXELS, MAX_PIXELS)
+    p.add_argument("--width", type=size, default=640, help=f"video pixels, {MIN_PIXELS} to "
+                   f"{MAX_PIXELS} (default 640)")
+    p.add_argument("--height", type=size, default=480, help=f"video pixels, {MIN_PIXELS} to "
+                   f"{MAX_PIXELS} (default 480)")
 
 
 def run(args) -> int:
+    from rgmcad.errors import UsageError
     from rgmcad.scene.design_space import vector_from_values
     from rgmcad.scene.layout_files import resolve_layout
-    from rgmcad.sim.render import record_video
+    from rgmcad.sim.render import record_video, video_frames
     from rgmcad.sim.run import Outcome, simulate
 
+    if args.video:
+        output_file(args.video, "--video", VIDEO_SUFFIXES)
     scenario = load_scenario_arg(args)
+    if args.video:
+        frames = video_frames(scenario.settings, VIDEO_FPS)
+        need = frames * args.width * args.height * 3
+        if need > MAX_VIDEO_BYTES:
+            raise UsageError("--width/--height", "", f"{args.width} x {args.height} pixels for "
+                             f"up to {frames} frames need {need / 2**30:.1f} GiB of memory, at "
+                             f"most {MAX_VIDEO_BYTES >> 30} GiB allowed: expected a smaller video")
     name, values = resolve_layout(scenario, args.layout, args.vector)
     parts = load_parts_of(scenario, args)
     if args.video:

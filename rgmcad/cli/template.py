@@ -19,6 +19,7 @@ from rgmcad.cli.common import (
     load_scenario_arg,
     say,
 )
+from rgmcad.cli.paths import finite, output_dir
 from rgmcad.errors import UsageError
 
 PAPER_CHOICES = ("a4", "letter", "a3", "auto")
@@ -41,7 +42,7 @@ def configure(p) -> None:
                    help=f"paper size (default: {DEFAULT_PAPER}); auto picks the size needing "
                    "the fewest sheets, A3 included; orientation is always chosen for the "
                    "fewest sheets")
-    p.add_argument("--overlap", type=float, default=DEFAULT_OVERLAP_MM, metavar="MM",
+    p.add_argument("--overlap", type=finite, default=DEFAULT_OVERLAP_MM, metavar="MM",
                    help=f"width of the strips neighbouring sheets share, mm "
                    f"(default: {DEFAULT_OVERLAP_MM:g})")
     p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
@@ -53,6 +54,7 @@ def run(args) -> int:
     from rgmcad.scene.layout_files import read_tolerances, resolve_layout
 
     t0 = time.perf_counter()
+    output_dir(args.out, "--out", files=("template.pdf", "template.svg"))
     scenario = load_scenario_arg(args)
     name, values = resolve_layout(scenario, args.layout, None)
     tolerances = {}

@@ -10,6 +10,8 @@ from pathlib import Path
 
 from rgmcad.cli.common import say
 
+USES_BUILD_DIR = False
+
 
 def configure(p) -> None:
     p.add_argument("image", help="a scan (with its dpi recorded) or a photo of one printed "

@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import logging
 import math
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -38,6 +39,7 @@ TOLERANCE_PERCENT = 0.5
 _PLAUSIBLE = (0.7, 1.3)  # scales a printer could plausibly have applied
 _FLAT_SCAN_MM = 0.3  # rms misfit of a similarity that still counts as a flat scan, mm
 _BORDER_MM = 40.0  # rectified area beyond the paper on each side, mm
+MAX_PIXELS = 80_000_000  # largest image read (under PIL's warning, 89 million)
 
 
 @dataclass(frozen=True)
@@ -89,34 +91,36 @@ class PrintCheck:
 
 
 def _load(path: Path) -> tuple[np.ndarray, float | None]:
-    """Grey image (uint8) and its recorded resolution in dpi (None if none)."""
-    from PIL import Image, ImageOps, UnidentifiedImageError
+    """Grey image (uint8) and its recorded dpi (None if none); refused past MAX_PIXELS."""
+    from PIL import Image, ImageOps
 
+    if not path.is_file():  # missing, a folder, a device or a pipe
+        raise PrintCheckError(path, "", "cannot read the image: not an existing file (a scan or photo)")
+    size = "too large"
     try:
-        with Image.open(path) as im:
+        with (warnings.catch_warnings(action="ignore", category=Image.DecompressionBombWarning),
+              Image.open(path) as im):  # opening reads the header (the size), not the pixels
+            if (size := f"{im.width} x {im.height} pixels") and im.width * im.height > MAX_PIXELS:
+                raise Image.DecompressionBombError(size)
             im.load()
             dpi = im.info.get("dpi")
             im = ImageOps.exif_transpose(im)
             if im.mode in ("RGBA", "LA", "PA") or (im.mode == "P" and "transparency" in im.info):
-                im = im.convert("RGBA")
-                white = Image.new("RGBA", im.size, (255, 255, 255, 255))
-                im = Image.alpha_composite(white, im)
+                im = Image.alpha_composite(Image.new("RGBA", im.size, (255,) * 4), im.convert("RGBA"))
             if im.mode in ("I;16", "I;16B", "I;16L", "I"):
                 arr = np.asarray(im, dtype=np.float64)
-                arr = 255.0 * arr / max(1.0, float(arr.max()))
-                grey = arr.astype(np.uint8)
+                grey = (255.0 * arr / max(1.0, float(arr.max()))).astype(np.uint8)
             else:
                 grey = np.asarray(im.convert("L"))
-    except (OSError, UnidentifiedImageError, ValueError) as exc:
-        raise PrintCheckError(path, "", f"cannot read the image ({exc})") from None
-    value = None
-    if dpi:
-        try:
-            d = float(np.mean([float(v) for v in dpi]))
-            value = d if d > 1.0 else None
-        except (TypeError, ValueError):
-            value = None
-    return np.ascontiguousarray(grey), value
+    except Exception as exc:  # PIL's size limit (at open), or a decoder's error on a bad file
+        big = f"{size}: expected at most {MAX_PIXELS // 10**6} million pixels (A3 at 600 dpi)"
+        raise PrintCheckError(path, "", big if isinstance(exc, Image.DecompressionBombError)
+                              else f"cannot read the image ({exc})") from None
+    try:
+        value = float(np.mean([float(v) for v in dpi])) if dpi else None
+    except (TypeError, ValueError):
+        value = None
+    return np.ascontiguousarray(grey), value if value is not None and value > 1.0 else None
 
 
 def _detector(refine: str):

@@ -16,11 +16,45 @@ it with itself.
 
 from __future__ import annotations
 
+import contextlib
+import ctypes
 import functools
+import os
+import sys
 import types
 import weakref
 
-import pybullet as pb
+
+def _import_pybullet():
+    """``import pybullet`` with file descriptors 1 and 2 silenced: its C code prints a banner
+    ("pybullet build time: ...") when imported, past ``sys.stdout``/``sys.stderr``, which would
+    break ``--json`` output and one-line errors. Every module of :mod:`rgmcad.sim` takes
+    pybullet from here (``from rgmcad.sim.engine import pb``), so this is the first import."""
+    sys.stdout.flush()
+    sys.stderr.flush()
+    try:
+        saved = [os.dup(1), os.dup(2)]
+    except OSError:  # no standard streams to protect
+        import pybullet
+
+        return pybullet
+    null = os.open(os.devnull, os.O_WRONLY)
+    try:
+        os.dup2(null, 1)
+        os.dup2(null, 2)
+        import pybullet
+
+        with contextlib.suppress(OSError, TypeError, AttributeError):  # no C library: no buffer
+            ctypes.CDLL(None).fflush(None)  # what C buffered (a pipe is block-buffered) goes too
+    finally:
+        for fd, copy in zip((1, 2), saved, strict=True):
+            os.dup2(copy, fd)
+            os.close(copy)
+        os.close(null)
+    return pybullet
+
+
+pb = _import_pybullet()
 
 
 def _disconnect(cid: int) -> None:

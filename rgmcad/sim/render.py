@@ -9,12 +9,14 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
-import pybullet as pb
 
 from rgmcad.geometry import to_pybullet
 from rgmcad.scene.bodies import Scene
+from rgmcad.sim.engine import pb
 from rgmcad.sim.world import World
 
+MAX_SIDE = 16384
+"""Largest side of a picture, pixels (callers choose their own, smaller limits)."""
 _STATIC = (0.72, 0.70, 0.66, 1.0)
 _PALETTE = [(0.85, 0.33, 0.10, 1), (0.13, 0.47, 0.71, 1), (0.17, 0.63, 0.17, 1),
             (0.58, 0.40, 0.74, 1), (0.89, 0.47, 0.76, 1), (0.74, 0.74, 0.13, 1),
@@ -29,6 +31,8 @@ class Renderer:
     """
 
     def __init__(self, world: World, width: int = 640, height: int = 480):
+        if not (1 <= width <= MAX_SIDE and 1 <= height <= MAX_SIDE):  # pybullet would abort
+            raise ValueError(f"picture size {width} x {height}: sides of 1 to {MAX_SIDE} pixels")
         self.world = world
         self.width, self.height = width, height
         self.ghosts: list[tuple[int, object]] = []
@@ -104,9 +108,20 @@ def save_video(frames: list[np.ndarray], path: Path, fps: float) -> None:
             writer.append_data(frame)
 
 
+def _every(settings, fps: float) -> int:
+    """Simulation steps between two frames of a video."""
+    return max(1, int(round(1 / (fps * settings.timestep))))
+
+
+def video_frames(settings, fps: float) -> int:
+    """Most frames :func:`record_video` keeps in memory for a scenario's ``settings``."""
+    return int(round(settings.duration / settings.timestep)) // _every(settings, fps) + 2
+
+
 def record_video(scenario, values, parts, path: Path, fps: float, width: int, height: int):
     """Simulate a layout and write a video of it (:func:`save_video`); returns the
-    :class:`~rgmcad.sim.run.SimulationResult`."""
+    :class:`~rgmcad.sim.run.SimulationResult`. Its frames are held in memory until then:
+    at most :func:`video_frames` of ``height * width * 3`` bytes."""
     from rgmcad.sim.run import simulate
 
     renderer, frames = [], []
@@ -116,7 +131,7 @@ def record_video(scenario, values, parts, path: Path, fps: float, width: int, he
             renderer.append(Renderer(world, width, height))
         frames.append(renderer[0].image())
 
-    every = max(1, int(round(1 / (fps * scenario.settings.timestep))))
+    every = _every(scenario.settings, fps)
     result = simulate(scenario, values, parts, observer=observer, observe_every=every)
     if frames:
         save_video(frames, path, fps)

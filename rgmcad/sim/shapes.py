@@ -23,11 +23,11 @@ from dataclasses import dataclass
 from functools import singledispatch
 
 import numpy as np
-import pybullet as pb
 
 from rgmcad.geometry import to_pybullet, transform_points
 from rgmcad.parts.pieces import BoxPiece, ConvexPiece, CylinderPiece, Piece, PlanePiece, SpherePiece
 from rgmcad.sim.cache import PartCache
+from rgmcad.sim.engine import pb
 
 ARRAY_CHILDREN = 16
 """Children ``createCollisionShapeArray`` keeps; it silently drops the others (bullet3#2185)."""

@@ -25,14 +25,13 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-import pybullet as pb
 
 from rgmcad.geometry import from_pybullet, invert, moved_point, rotated_z, to_pybullet
 from rgmcad.parts.pieces import ConvexPiece, Piece, PlanePiece
 from rgmcad.scene.bodies import Scene, SceneBody
 from rgmcad.scene.model import SimulationSettings
 from rgmcad.sim.cache import PartCache
-from rgmcad.sim.engine import Engine
+from rgmcad.sim.engine import Engine, pb
 from rgmcad.sim.inertia import inertial_frame
 from rgmcad.sim.shapes import collision_shape
 
