@@ -58,6 +58,9 @@ def build_parser() -> argparse.ArgumentParser:
                     "contraptions that work when built by hand.")
     parser.add_argument("--build-dir", default=str(DEFAULT_BUILD_DIR),
                         help=f"where built parts are cached (default: {DEFAULT_BUILD_DIR})")
+    parser.add_argument("--parts", metavar="DIR", default=None,
+                        help="the folder of part families to use instead of the shipped ones; "
+                        "its Python files are imported (run), like installing a package")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     groups: dict[str, argparse._SubParsersAction] = {}
     for name, (module_name, help_text) in COMMANDS.items():

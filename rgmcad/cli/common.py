@@ -25,11 +25,34 @@ def add_layout_args(p: argparse.ArgumentParser, vector: bool = True) -> None:
         group.add_argument("--vector", help="a design vector v1,...,vd in [0, 1]")
 
 
+def parts_dir_arg(args) -> Path | None:
+    """The folder of ``--parts DIR`` (None: the shipped part families)."""
+    from rgmcad.errors import UsageError
+
+    parts = getattr(args, "parts", None)
+    if parts is None:
+        return None
+    if not Path(parts).is_dir():
+        raise UsageError(parts, "--parts", "expected a folder of part family files (*.py)")
+    return Path(parts).resolve()
+
+
+def shipped_parts_only(args, command: str) -> None:
+    """Refuse ``--parts`` in a command whose workflow cannot pass it on yet, rather than
+    silently use the shipped families."""
+    if getattr(args, "parts", None) is not None:
+        from rgmcad.errors import UsageError
+
+        raise UsageError("--parts", "", f"{command} uses the shipped part families only (for "
+                         "now); run it without --parts")
+
+
 def load_scenario_arg(args):
-    """The scenario named by ``args.scenario`` (a file, or a shipped scenario's name)."""
+    """The scenario named by ``args.scenario`` (a file, or a shipped scenario's name), its
+    part families from ``--parts DIR`` if given."""
     from rgmcad.scene.loader import load_scenario
 
-    return load_scenario(args.scenario)
+    return load_scenario(args.scenario, parts_dir=parts_dir_arg(args))
 
 
 def load_parts_of(scenario, args) -> dict:

@@ -19,7 +19,10 @@ import dataclasses
 import hashlib
 import importlib.util
 import inspect
+import math
+import reprlib
 import sys
+import types
 import typing
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
@@ -114,13 +117,18 @@ class Family:
                         where, f"{key}.{name}", f"missing parameter of part {self.name!r}"
                     )
                 continue
-            kwargs[name] = _coerce(values[name], hints.get(name, float), where, f"{key}.{name}")
-        params = self.params(**kwargs)
-        check = getattr(params, "check", None)
-        if check is not None:
-            problem = check()
-            if problem:
-                raise ScenarioError(where, key, f"part {self.name!r}: {problem}")
+            kwargs[name] = _coerce(values[name], hints.get(name, float), where, f"{key}.{name}",
+                                   f.metadata)
+        try:  # the family's own code: whatever it raises on odd values is the file's fault
+            params = self.params(**kwargs)
+            check = getattr(params, "check", None)
+            problem = check() if check is not None else None
+        except ScenarioError:
+            raise
+        except (TypeError, ValueError, ArithmeticError) as exc:
+            problem = f"{type(exc).__name__}: {exc}"
+        if problem:
+            raise ScenarioError(where, key, f"part {self.name!r}: {problem}")
         return params
 
     def bodies_of(self, value) -> dict:
@@ -141,25 +149,58 @@ class Family:
         return tuple(k for k in keys if k != MAIN)
 
 
-def _coerce(value, annotation, where: str, key: str):
-    if annotation in (float, "float"):
-        if isinstance(value, bool) or not isinstance(value, int | float):
-            raise ScenarioError(where, key, f"expected a number, got {value!r}")
-        return float(value)
-    if annotation in (int, "int"):
-        if isinstance(value, bool) or not isinstance(value, int):
-            raise ScenarioError(where, key, f"expected an integer, got {value!r}")
-        return value
+FLOAT_RANGE = (-100.0, 100.0)
+"""Default range of a float parameter (SI units: metres, a part of at most 100 m). A family
+widens or narrows it per field: ``field(metadata={"range": (low, high)})``; a field that is not
+a length says so with ``metadata={"unit": "deg"}`` (lengths are also 0 or at least
+:data:`FINEST` in size, and the loader warns of those above 2 m as likely millimetres)."""
+FINEST = 1e-5
+"""The smallest non-zero length of a part (0.01 mm): finer is no size a part can have, and
+makes volumes, masses and inertias vanish."""
+INT_RANGE = (-1000, 1000)
+"""Default range of an int parameter (a count of sectors, say: its cost grows with it)."""
+
+_REPR = reprlib.Repr()
+_REPR.maxlevel, _REPR.maxlist, _REPR.maxstring, _REPR.maxother = 2, 4, 40, 40
+
+
+def _coerce(value, annotation, where: str, key: str, metadata=None):
+    """``value`` as the parameter's type: a finite float or an int within the field's
+    ``metadata["range"]`` (default :data:`FLOAT_RANGE` / :data:`INT_RANGE`), a bool, a string,
+    a tuple of those."""
+    metadata = metadata or {}
+    if annotation in (float, "float", int, "int"):
+        integer = annotation in (int, "int")
+        low, high = metadata.get("range") or (INT_RANGE if integer else FLOAT_RANGE)
+        kind = "an integer" if integer else "a number"
+        if (isinstance(value, bool) or not isinstance(value, int if integer else int | float)
+                or isinstance(value, float) and not math.isfinite(value)
+                or not low <= value <= high):
+            raise ScenarioError(where, key, f"expected {kind} with {low:,g} <= {key.rpartition('.')[2]}"
+                                f" <= {high:,g}, got {_REPR.repr(value)}")
+        if not integer and metadata.get("unit", "m") == "m" and 0 < abs(value) < FINEST:
+            raise ScenarioError(where, key, f"expected 0 or a length of at least {FINEST:g} m, "
+                                f"got {value!r}")
+        return value if integer else float(value)
     if annotation in (bool, "bool"):
         if not isinstance(value, bool):
-            raise ScenarioError(where, key, f"expected true or false, got {value!r}")
+            raise ScenarioError(where, key, f"expected true or false, got {_REPR.repr(value)}")
+        return value
+    if annotation in (str, "str"):
+        if not isinstance(value, str):
+            raise ScenarioError(where, key, f"expected a string, got {_REPR.repr(value)}")
         return value
     origin = typing.get_origin(annotation)
     if origin is tuple:
         args = typing.get_args(annotation)
         if not isinstance(value, list | tuple) or len(value) != len(args):
-            raise ScenarioError(where, key, f"expected a list of {len(args)} numbers")
-        return tuple(_coerce(v, a, where, key) for v, a in zip(value, args, strict=True))
+            raise ScenarioError(where, key, f"expected a list of {len(args)} numbers, "
+                                f"got {_REPR.repr(value)}")
+        return tuple(_coerce(v, a, where, key, metadata) for v, a in zip(value, args, strict=True))
+    if origin in (typing.Union, types.UnionType):  # ``float | None``: TOML has no None
+        options = [a for a in typing.get_args(annotation) if a is not type(None)]
+        if len(options) == 1:
+            return _coerce(value, options[0], where, key, metadata)
     return value
 
 

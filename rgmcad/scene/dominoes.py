@@ -117,12 +117,8 @@ def x_switch(count: int, width: float, origin=(0.0, 0.0), angle: float = 0.0) ->
     return _place(pts[:, :2], pts[:, 2], origin, angle)
 
 
-def polyline(points, count: int | None = None, spacing: float | None = None) -> np.ndarray:
-    """Dominoes evenly spaced by arc length along a polyline of (k, 2) ``points``.
-
-    Give either ``count`` or ``spacing`` (metres). Headings follow the segment under each
-    domino; a domino exactly on a corner takes the mean direction of its two segments.
-    """
+def _segments(points):
+    """(points (k, 2), segments (k-1, 2), their lengths) of a polyline, checked."""
     pts = np.asarray(points, float)
     if pts.ndim != 2 or pts.shape[1] != 2 or len(pts) < 2:
         raise ValueError("a polyline needs at least two (x, y) points")
@@ -130,11 +126,27 @@ def polyline(points, count: int | None = None, spacing: float | None = None) -> 
     seg_len = np.linalg.norm(seg, axis=1)
     if np.any(seg_len <= 0):
         raise ValueError("a polyline cannot repeat a point")
-    total = seg_len.sum()
+    return pts, seg, seg_len
+
+
+def polyline_count(points, count: int | None = None, spacing: float | None = None) -> int:
+    """How many dominoes :func:`polyline` places, computed without placing them."""
     if (count is None) == (spacing is None):
         raise ValueError("give exactly one of count or spacing")
-    if count is None:
-        count = int(np.floor(total / spacing + 1e-9)) + 1
+    if count is not None:
+        return count
+    return int(np.floor(_segments(points)[2].sum() / spacing + 1e-9)) + 1
+
+
+def polyline(points, count: int | None = None, spacing: float | None = None) -> np.ndarray:
+    """Dominoes evenly spaced by arc length along a polyline of (k, 2) ``points``.
+
+    Give either ``count`` or ``spacing`` (metres). Headings follow the segment under each
+    domino; a domino exactly on a corner takes the mean direction of its two segments.
+    """
+    pts, seg, seg_len = _segments(points)
+    total = seg_len.sum()
+    count = polyline_count(points, count, spacing)
     s = np.linspace(0.0, total, count) if spacing is None else np.arange(count) * spacing
     cum = np.concatenate([[0.0], np.cumsum(seg_len)])
     idx = np.clip(np.searchsorted(cum, s, side="right") - 1, 0, len(seg) - 1)

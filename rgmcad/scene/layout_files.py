@@ -24,14 +24,17 @@ from rgmcad.scene.design_space import (
     values_from_mapping,
     values_from_vector,
 )
+from rgmcad.scene.loader_checks import key_text, read_text
+from rgmcad.scene.schema import POSE, VECTOR, show
 
 
 def _read(path: Path) -> object:
+    text = read_text(path, "layout file")
     try:
-        text = path.read_text()
         return tomllib.loads(text) if path.suffix == ".toml" else json.loads(text)
-    except (OSError, ValueError) as exc:
-        raise ScenarioError(str(path), "", f"cannot read the layout file ({exc})") from None
+    except (ValueError, RecursionError) as exc:
+        reason = "nested too deeply" if isinstance(exc, RecursionError) else exc
+        raise ScenarioError(str(path), "", f"cannot read the layout file ({reason})") from None
 
 
 def resolve_layout(scenario, layout: str | None, vector: str | None):
@@ -45,8 +48,8 @@ def resolve_layout(scenario, layout: str | None, vector: str | None):
         if v.shape != (scenario.dimension,):
             raise UsageError("--vector", "", f"expected {scenario.dimension} values "
                                 f"(the design space of {scenario.name}), got {len(v)}")
-        if np.any(v < 0) or np.any(v > 1):
-            raise UsageError("--vector", "", "values must lie in [0, 1]")
+        if not np.all(np.isfinite(v)) or np.any(v < 0) or np.any(v > 1):
+            raise UsageError("--vector", "", "values must be numbers in [0, 1]")
         return "vector", values_from_vector(scenario, v)
     name = layout or "initial"
     if name in scenario.layouts:
@@ -64,25 +67,27 @@ def load_layout_file(scenario, path: Path) -> np.ndarray:
     if not isinstance(data, dict):
         raise ScenarioError(str(path), "", "a layout file holds a table")
     if data.get("scenario") not in (None, scenario.name):
-        raise ScenarioError(str(path), "scenario", f"this layout is for {data['scenario']!r}, "
+        raise ScenarioError(str(path), "scenario", f"this layout is for {show(data['scenario'])}, "
                             f"not {scenario.name!r}")
     if "values" in data:
         values = data["values"]
         if not isinstance(values, dict):
             raise ScenarioError(str(path), "values", "expected a table of parameter: value")
-        names = {f.name for f in scenario.free}
+        free = {f.name: f for f in scenario.free}
+        read = {}
         for k, v in values.items():
-            if k not in names:
-                raise ScenarioError(str(path), f"values.{k}", "not a free parameter; allowed: "
-                                    + ", ".join(sorted(names)))
-            if isinstance(v, bool) or not isinstance(v, int | float):
-                raise ScenarioError(str(path), f"values.{k}", "expected a number")
-        return values_from_mapping(scenario, values)
+            if k not in free:
+                raise ScenarioError(str(path), f"values.{key_text(k)}", "not a free parameter; "
+                                    "allowed: " + ", ".join(sorted(free)))
+            read[k] = POSE[free[k].component].read(v, str(path), f"values.{k}")
+        return values_from_mapping(scenario, read)
     if "vector" in data:
         v = data["vector"]
         if not isinstance(v, list) or len(v) != scenario.dimension:
-            raise ScenarioError(str(path), "vector", f"expected {scenario.dimension} numbers")
-        return values_from_vector(scenario, np.asarray(v, float))
+            raise ScenarioError(str(path), "vector", f"expected {scenario.dimension} numbers, "
+                                f"each {VECTOR.describe('v')}, got {show(v)}")
+        return values_from_vector(scenario, np.array(
+            [VECTOR.read(x, str(path), f"vector[{i}]") for i, x in enumerate(v)], float))
     raise ScenarioError(str(path), "", "a layout file needs `values` or `vector`")
 
 
@@ -127,7 +132,7 @@ def read_tolerances(scenario, path: Path) -> dict[str, tuple[float, float]]:
     for key, value in table.items():
         obj, _, component = str(key).rpartition(".")
         if obj not in scenario.objects or component not in POSE_KEYS:
-            raise ScenarioError(str(path), f"tolerances.{key}", "expected object.component with "
+            raise ScenarioError(str(path), f"tolerances.{key_text(key)}", "expected object.component with "
                                 f"a component of {', '.join(POSE_KEYS)} and an object of "
                                 f"{scenario.name} ({', '.join(scenario.objects)})")
         if isinstance(value, int | float) and not isinstance(value, bool):

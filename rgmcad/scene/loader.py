@@ -10,6 +10,8 @@ The values it returns are the types of :mod:`rgmcad.scene.model`.
 
 from __future__ import annotations
 
+import dataclasses
+import inspect
 import tomllib
 from collections.abc import Mapping
 from pathlib import Path
@@ -21,7 +23,15 @@ from rgmcad.errors import ScenarioError
 from rgmcad.geometry import POSE_KEYS
 from rgmcad.parts.family import load_families
 from rgmcad.scene import dominoes
-from rgmcad.scene.loader_checks import check_keys, check_name, expect
+from rgmcad.scene.loader_checks import (
+    check_keys,
+    check_name,
+    check_scenario_name,
+    expect,
+    key_text,
+    one_line,
+    read_text,
+)
 from rgmcad.scene.loader_events import parse_events
 from rgmcad.scene.model import (
     FRAME,
@@ -34,26 +44,53 @@ from rgmcad.scene.model import (
     SceneObject,
     SimulationSettings,
 )
+from rgmcad.scene.schema import (
+    DOMINO,
+    JOINT,
+    MAX_BODIES,
+    MAX_DEPTH,
+    MAX_FREE,
+    MAX_JOINTS,
+    MAX_LAYOUTS,
+    MAX_RUN,
+    MAX_STEPS,
+    MIN_RANGE,
+    MM_AS_M,
+    PATHS,
+    PHYSICAL,
+    POSE,
+    RUN,
+    SIMULATION,
+    SIZE,
+    show,
+    warn,
+    warnings_after_loading,
+)
 
-TOP_KEYS = ("name", "description", "parts", "simulation", "objects", "runs", "joints",
-            "events", "layouts")
+TOP_KEYS = ("name", "description", "simulation", "objects", "runs", "joints", "events",
+            "layouts")
 OBJECT_KEYS = ("part", "params", "parent", "pose", "free", "note", *PHYSICAL_KEYS)
 RUN_KEYS = ("domino", "path", "tilt", "parent", "pose", "free", "note", *PHYSICAL_KEYS)
+NO_PARTS_KEY = ("a scenario file cannot load part families (a folder of part files is Python "
+                "code, and a scenario is data); pass --parts DIR on the command line instead: "
+                "rgmcad --parts DIR COMMAND ...")
 
 
 def load_scenario(path: str | Path, *, parts_dir: Path | None = None) -> Scenario:
-    """Read and check a scenario file. Raises ScenarioError on any bad input."""
+    """Read and check a scenario file. Raises ScenarioError on any bad input.
+
+    ``parts_dir``: the folder of part families (``rgmcad --parts DIR``; default: the shipped
+    ones). Its Python files are imported: only the caller chooses it, never the file.
+    """
     path = Path(path)
-    try:
-        text = path.read_text()
-    except OSError as exc:
-        raise ScenarioError(str(path), "", f"cannot read the file ({exc.strerror})") from None
+    text = read_text(path)
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
-        raise ScenarioError(str(path), "", f"not valid TOML: {exc}") from None
-    if parts_dir is None and "parts" in data:
-        parts_dir = (path.parent / expect(data["parts"], str, path, "parts")).resolve()
+        raise one_line(ScenarioError(str(path), "", f"not valid TOML: {exc}")) from None
+    except RecursionError:
+        raise ScenarioError(str(path), "", "not valid TOML here: arrays or tables nested too "
+                            "deeply to read") from None
     return parse_scenario(data, where=str(path), path=path, parts_dir=parts_dir)
 
 
@@ -62,11 +99,26 @@ def parse_scenario(data: Mapping, *, where: str = "<scenario>", path: Path | Non
     """Check a scenario's TOML data (a mapping) and read it; ``where`` names it in errors.
 
     The part families come from ``parts_dir`` (default: the shipped ones); the scenario keeps
-    that registry (``Scenario.families``).
+    that registry (``Scenario.families``). Warnings of likely slips of units are logged once
+    the whole scenario has loaded.
     """
+    try:
+        with warnings_after_loading():
+            return _parse(data, where, path, parts_dir)
+    except ScenarioError as exc:
+        raise one_line(exc) from None
+
+
+def _parse(data, where, path, parts_dir) -> Scenario:
+    data = expect(data, dict, where, "")
+    if "parts" in data:
+        raise ScenarioError(where, "parts", NO_PARTS_KEY)
     check_keys(data, TOP_KEYS, where, "")
     families = load_families(parts_dir)
-    name = expect(data.get("name", path.stem if path else "scenario"), str, where, "name")
+    if "name" in data:
+        name = check_scenario_name(expect(data["name"], str, where, "name"), where)
+    else:
+        name = check_scenario_name(path.stem if path else "scenario", where, from_file=True)
     settings = _parse_settings(data.get("simulation", {}), where)
 
     objects: dict[str, SceneObject] = {}
@@ -75,8 +127,11 @@ def parse_scenario(data: Mapping, *, where: str = "<scenario>", path: Path | Non
 
     raw_objects = expect(data.get("objects", {}), dict, where, "objects")
     raw_runs = expect(data.get("runs", {}), dict, where, "runs")
+    if len(raw_objects) + len(raw_runs) > MAX_BODIES:
+        raise ScenarioError(where, "objects", f"{len(raw_objects) + len(raw_runs):,} objects "
+                            f"and runs; at most {MAX_BODIES:,} bodies per scenario")
     for obj_name, raw in raw_objects.items():
-        key = f"objects.{obj_name}"
+        key = f"objects.{key_text(obj_name)}"
         check_name(obj_name, where, key)
         raw = expect(raw, dict, where, key)
         check_keys(raw, OBJECT_KEYS, where, key)
@@ -88,10 +143,12 @@ def parse_scenario(data: Mapping, *, where: str = "<scenario>", path: Path | Non
         else:
             if part not in families:
                 allowed = ", ".join(sorted([*families, FRAME]))
-                raise ScenarioError(where, f"{key}.part", f"unknown part {part!r}; allowed: {allowed}")
+                raise ScenarioError(where, f"{key}.part",
+                                    f"unknown part {show(part)}; allowed: {allowed}")
             params = families[part].make_params(
                 expect(raw.get("params", {}), dict, where, f"{key}.params"),
                 where=where, key=f"{key}.params")
+            _note_sizes(params, where, f"{key}.params")
         physical = _parse_physical(raw, where, key)
         if part == FRAME and not physical.static:
             raise ScenarioError(where, key, "a frame has no body: remove mass/density")
@@ -99,23 +156,31 @@ def parse_scenario(data: Mapping, *, where: str = "<scenario>", path: Path | Non
             raise ScenarioError(where, key, "an infinite plane is always static")
         pose = _parse_pose(raw.get("pose", {}), where, f"{key}.pose")
         objects[obj_name] = SceneObject(obj_name, part, params, physical,
-                                        raw.get("parent"), pose)
+                                        _parse_parent(raw, where, key), pose)
         free.extend(_parse_free(raw.get("free", {}), obj_name, where, f"{key}.free"))
 
     for run_name, raw in raw_runs.items():
-        key = f"runs.{run_name}"
+        key = f"runs.{key_text(run_name)}"
         check_name(run_name, where, key)
         if run_name in objects:
             raise ScenarioError(where, key, "a run cannot share its name with an object")
         raw = expect(raw, dict, where, key)
         check_keys(raw, RUN_KEYS, where, key)
         pose = _parse_pose(raw.get("pose", {}), where, f"{key}.pose")
-        objects[run_name] = SceneObject(run_name, FRAME, None, Physical(), raw.get("parent"), pose)
+        objects[run_name] = SceneObject(run_name, FRAME, None, Physical(),
+                                        _parse_parent(raw, where, key), pose)
         free.extend(_parse_free(raw.get("free", {}), run_name, where, f"{key}.free"))
         names = _expand_run(run_name, raw, families, objects, where, key)
         runs[run_name] = tuple(names)
+        if len(objects) > MAX_BODIES:
+            raise ScenarioError(where, key, f"this run brings the scenario to {len(objects):,} "
+                                f"bodies; at most {MAX_BODIES:,} bodies per scenario (objects, "
+                                "dominoes and frames)")
 
-    _check_parents(objects, where)
+    if len(free) > MAX_FREE:
+        raise ScenarioError(where, "objects", f"{len(free):,} free parameters; at most "
+                            f"{MAX_FREE:,} (the dimension of the design space)")
+    _check_parents(objects, runs, where)
     joints = _parse_joints(data.get("joints", []), objects, families, where)
     events = parse_events(data.get("events", {}), objects, families, runs, where, settings)
     layouts = _parse_layouts(data.get("layouts", {}), objects, free, where)
@@ -131,23 +196,37 @@ def parse_scenario(data: Mapping, *, where: str = "<scenario>", path: Path | Non
     return scenario
 
 
+def _parse_parent(raw, where, key) -> str | None:
+    parent = raw.get("parent")
+    return None if parent is None else expect(parent, str, where, f"{key}.parent")
+
+
+def _note_sizes(params, where, key) -> None:
+    """Warn of part parameters in metres (the default unit) that are implausibly large."""
+    for f in dataclasses.fields(params):
+        value = getattr(params, f.name)
+        if (f.metadata.get("unit", "m") == "m" and isinstance(value, float)
+                and abs(value) > SIZE.usual[1]):
+            warn(f"{where}: {key}.{f.name}: {value:g} m is unusual: {MM_AS_M}")
+
+
 def _expand_run(run_name, raw, families, objects, where, key) -> list[str]:
     domino = expect(raw.get("domino"), dict, where, f"{key}.domino")
-    if not set(domino) <= {"thickness", "width", "height"}:
-        raise ScenarioError(where, f"{key}.domino", "allowed keys: thickness, width, height")
+    check_keys(domino, tuple(DOMINO), where, f"{key}.domino")
+    size = {}
+    for k, spec in DOMINO.items():
+        if k not in domino:
+            raise ScenarioError(where, f"{key}.domino.{k}", f"a domino needs its {k} "
+                                f"({spec.describe(k)})")
+        size[k] = spec.read(domino[k], where, f"{key}.domino.{k}")
+    if "box" not in families:
+        raise ScenarioError(where, f"{key}.domino", "domino runs are made of the part family "
+                            "'box', which the parts folder lacks")
     params = families["box"].make_params(
-        {"length": domino.get("thickness"), "width": domino.get("width"),
-         "height": domino.get("height")}, where=where, key=f"{key}.domino")
-    path = dict(expect(raw.get("path"), dict, where, f"{key}.path"))
-    kind = path.pop("kind", None)
-    if kind not in dominoes.PATHS:
-        raise ScenarioError(where, f"{key}.path.kind",
-                            f"unknown path {kind!r}; allowed: {', '.join(dominoes.PATHS)}")
-    try:
-        coords = dominoes.PATHS[kind](**path)
-    except (TypeError, ValueError) as exc:
-        raise ScenarioError(where, f"{key}.path", f"bad {kind} path: {exc}") from None
-    tilt = float(expect(raw.get("tilt", 0.0), (int, float), where, f"{key}.tilt"))
+        {"length": size["thickness"], "width": size["width"], "height": size["height"]},
+        where=where, key=f"{key}.domino")
+    coords = _run_path(raw, where, key)
+    tilt = RUN["tilt"].read(raw.get("tilt", 0.0), where, f"{key}.tilt")
     physical = _parse_physical(raw, where, key)
     names = []
     t, h = params.length, params.height
@@ -161,6 +240,40 @@ def _expand_run(run_name, raw, families, objects, where, key) -> list[str]:
         objects[name] = SceneObject(name, "box", params, physical, run_name, pose, run=run_name)
         names.append(name)
     return names
+
+
+def _run_path(raw, where, key) -> np.ndarray:
+    """(n, 3) domino positions and headings of a run's ``path``, every parameter checked
+    against :data:`~rgmcad.scene.schema.PATHS` (and the count bounded) before any is made."""
+    path = expect(raw.get("path"), dict, where, f"{key}.path")
+    kind = path.get("kind")
+    if not isinstance(kind, str) or kind not in PATHS:
+        raise ScenarioError(where, f"{key}.path.kind",
+                            f"unknown path {show(kind)}; allowed: {', '.join(PATHS)}")
+    table = PATHS[kind]
+    check_keys(path, ("kind", *table), where, f"{key}.path")
+    args = {k: spec.read(path[k], where, f"{key}.path.{k}")
+            for k, spec in table.items() if k in path}
+    make = dominoes.PATHS[kind]
+    for p in inspect.signature(make).parameters.values():
+        if p.default is p.empty and p.name not in args:
+            raise ScenarioError(where, f"{key}.path.{p.name}", f"a {kind} path needs "
+                                f"{p.name} ({table[p.name].describe(p.name)})")
+    try:
+        n = dominoes.polyline_count(**args) if kind == "polyline" else 0
+        coords = None if n > MAX_RUN else make(**args)
+    except ValueError as exc:
+        raise ScenarioError(where, f"{key}.path", f"bad {kind} path: {exc}") from None
+    if coords is None:
+        raise ScenarioError(where, f"{key}.path.spacing", f"this spacing gives {n:,} dominoes; "
+                            f"at most {MAX_RUN:,} per run")
+    if len(coords) > MAX_RUN:
+        raise ScenarioError(where, f"{key}.path", f"{len(coords):,} dominoes; at most "
+                            f"{MAX_RUN:,} per run")
+    if not np.all(np.isfinite(coords)):
+        raise ScenarioError(where, f"{key}.path", f"this {kind} path gives positions that are "
+                            "not finite numbers")
+    return coords
 
 
 def _tilted(pose, thickness, height, tilt_deg):
@@ -180,29 +293,21 @@ def _tilted(pose, thickness, height, tilt_deg):
 def _parse_settings(raw, where) -> SimulationSettings:
     raw = expect(raw, dict, where, "simulation")
     check_keys(raw, SIMULATION_KEYS, where, "simulation")
-    defaults = SimulationSettings()
-    values = {}
-    for k, v in raw.items():
-        kind = type(getattr(defaults, k))
-        if kind is bool:
-            values[k] = expect(v, bool, where, f"simulation.{k}")
-        elif kind is int:
-            values[k] = expect(v, int, where, f"simulation.{k}")
-        else:
-            values[k] = float(expect(v, (int, float), where, f"simulation.{k}"))
-        if kind is not bool and values[k] <= 0 and k not in ("restitution_velocity_threshold",):
-            raise ScenarioError(where, f"simulation.{k}", "must be > 0")
-    return SimulationSettings(**values)
+    settings = SimulationSettings(**{k: SIMULATION[k].read(v, where, f"simulation.{k}")
+                                     for k, v in raw.items()})
+    steps = settings.duration / settings.timestep
+    if steps < 1:
+        raise ScenarioError(where, "simulation.duration", f"{settings.duration:g} s is shorter "
+                            f"than one time step ({settings.timestep:g} s)")
+    if steps > MAX_STEPS:
+        raise ScenarioError(where, "simulation.duration", f"{settings.duration:g} s in steps of "
+                            f"{settings.timestep:g} s is {steps:,.0f} steps; at most "
+                            f"{MAX_STEPS:,} (shorten duration or lengthen timestep)")
+    return settings
 
 
 def _parse_physical(raw, where, key) -> Physical:
-    values = {}
-    for k in PHYSICAL_KEYS:
-        if k in raw:
-            v = float(expect(raw[k], (int, float), where, f"{key}.{k}"))
-            if v < 0 or (k in ("mass", "density") and v <= 0):
-                raise ScenarioError(where, f"{key}.{k}", "must be positive")
-            values[k] = v
+    values = {k: PHYSICAL[k].read(raw[k], where, f"{key}.{k}") for k in PHYSICAL_KEYS if k in raw}
     if "mass" in values and "density" in values:
         raise ScenarioError(where, key, "give mass or density, not both")
     return Physical(**values)
@@ -211,8 +316,7 @@ def _parse_physical(raw, where, key) -> Physical:
 def _parse_pose(raw, where, key) -> tuple[float, ...]:
     raw = expect(raw, dict, where, key)
     check_keys(raw, POSE_KEYS, where, key)
-    return tuple(float(expect(raw.get(k, 0.0), (int, float), where, f"{key}.{k}"))
-                 for k in POSE_KEYS)
+    return tuple(POSE[k].read(raw.get(k, 0.0), where, f"{key}.{k}") for k in POSE_KEYS)
 
 
 def _parse_free(raw, obj_name, where, key) -> list[FreeParameter]:
@@ -222,35 +326,41 @@ def _parse_free(raw, obj_name, where, key) -> list[FreeParameter]:
     for component in POSE_KEYS:  # canonical order, whatever the file's order
         if component not in raw:
             continue
-        rng = raw[component]
-        if (not isinstance(rng, list) or len(rng) != 2
-                or not all(isinstance(v, int | float) and not isinstance(v, bool) for v in rng)):
-            raise ScenarioError(where, f"{key}.{component}", "expected a range [min, max]")
-        low, high = float(rng[0]), float(rng[1])
-        if not low < high:
-            raise ScenarioError(where, f"{key}.{component}",
-                                f"range min must be < max, got [{low}, {high}]")
+        rng, spec, k = raw[component], POSE[component], f"{key}.{component}"
+        if not isinstance(rng, list) or len(rng) != 2:
+            raise ScenarioError(where, k, f"expected a range [min, max], each "
+                                f"{spec.describe(component)}, got {show(rng)}")
+        low, high = (spec.read(v, where, f"{k}[{i}]") for i, v in enumerate(rng))
+        if not high - low >= MIN_RANGE:
+            raise ScenarioError(where, k, f"range min must be < max (by at least "
+                                f"{MIN_RANGE:g} {spec.unit}), got [{low:g}, {high:g}]")
         out.append(FreeParameter(obj_name, component, low, high))
     return out
 
 
-def _check_parents(objects, where):
+def _check_parents(objects, runs, where):
     graph = nx.DiGraph()
     for name, obj in objects.items():
         graph.add_node(name)
         if obj.parent is not None:
-            if not isinstance(obj.parent, str) or obj.parent not in objects:
-                key = f"objects.{name}.parent" if obj.run is None else f"runs.{obj.parent}"
-                raise ScenarioError(where, key, f"unknown parent {obj.parent!r}; "
+            if obj.parent not in objects:
+                key = f"runs.{name}.parent" if name in runs else f"objects.{name}.parent"
+                raise ScenarioError(where, key, f"unknown parent {show(obj.parent)}; "
                                     "allowed: any object or run name")
             graph.add_edge(obj.parent, name)
     if not nx.is_directed_acyclic_graph(graph):
         cycle = " -> ".join(e[0] for e in nx.find_cycle(graph))
         raise ScenarioError(where, "objects", f"the parents form a cycle: {cycle}")
+    chain = nx.dag_longest_path(graph)
+    if len(chain) - 1 > MAX_DEPTH:
+        raise ScenarioError(where, "objects", f"a chain of {len(chain) - 1:,} parents "
+                            f"({chain[0]} -> ... -> {chain[-1]}); at most {MAX_DEPTH:,} levels")
 
 
 def _parse_joints(raw, objects, families, where) -> tuple[Joint, ...]:
     raw = expect(raw, list, where, "joints")
+    if len(raw) > MAX_JOINTS:
+        raise ScenarioError(where, "joints", f"{len(raw):,} joints; at most {MAX_JOINTS:,}")
     joints = []
     for i, j in enumerate(raw):
         key = f"joints[{i}]"
@@ -261,45 +371,43 @@ def _parse_joints(raw, objects, families, where) -> tuple[Joint, ...]:
         elif kind == "hinge":
             check_keys(j, ("kind", "objects", "point", "axis"), where, key)
         else:
-            raise ScenarioError(where, f"{key}.kind", f"unknown joint {kind!r}; allowed: weld, hinge")
+            raise ScenarioError(where, f"{key}.kind",
+                                f"unknown joint {show(kind)}; allowed: weld, hinge")
         names = expect(j.get("objects"), list, where, f"{key}.objects")
-        wanted = 2 if kind == "weld" else (1, 2)
-        if len(names) not in (wanted if isinstance(wanted, tuple) else (wanted,)):
+        wanted = (2,) if kind == "weld" else (1, 2)
+        if len(names) not in wanted:
             raise ScenarioError(where, f"{key}.objects",
                                 "a weld joins two objects; a hinge names one (hinged to the "
                                 "world) or two (the moving one first)")
         for n in names:
-            if n not in objects or objects[n].part == FRAME:
-                raise ScenarioError(where, f"{key}.objects", f"unknown body {n!r}")
-        vec = {}
-        for k in ("point", "axis"):
-            if k in j:
-                v = expect(j[k], list, where, f"{key}.{k}")
-                if len(v) != 3:
-                    raise ScenarioError(where, f"{key}.{k}", "expected 3 numbers")
-                vec[k] = tuple(float(x) for x in v)
-        if "axis" in vec and np.linalg.norm(vec["axis"]) == 0:
-            raise ScenarioError(where, f"{key}.axis", "the axis cannot be zero")
+            if not isinstance(n, str) or n not in objects or objects[n].part == FRAME:
+                raise ScenarioError(where, f"{key}.objects", f"unknown body {show(n)}")
+        if len(set(names)) != len(names):
+            raise ScenarioError(where, f"{key}.objects", "a joint joins two different bodies")
+        vec = {k: JOINT[k].read(j[k], where, f"{key}.{k}") for k in JOINT if k in j}
         joints.append(Joint(kind, tuple(names), **vec))
     return tuple(joints)
 
 
 def _parse_layouts(raw, objects, free, where) -> dict[str, dict[str, float]]:
     raw = expect(raw, dict, where, "layouts")
+    if len(raw) > MAX_LAYOUTS:
+        raise ScenarioError(where, "layouts", f"{len(raw):,} layouts; at most {MAX_LAYOUTS:,}")
     by_name = {f.name: f for f in free}
     layouts = {"initial": {f.name: objects[f.object].pose[POSE_KEYS.index(f.component)]
                            for f in free}}
     for layout_name, table in raw.items():
-        key = f"layouts.{layout_name}"
+        key = f"layouts.{key_text(layout_name)}"
+        check_name(layout_name, where, key)
         table = expect(table, dict, where, key)
         values = dict(layouts["initial"])
         for obj_name, comps in table.items():
-            comps = expect(comps, dict, where, f"{key}.{obj_name}")
+            comps = expect(comps, dict, where, f"{key}.{key_text(obj_name)}")
             for comp, value in comps.items():
                 pname = f"{obj_name}.{comp}"
                 if pname not in by_name:
-                    raise ScenarioError(where, f"{key}.{pname}", "not a free parameter; allowed: "
-                                        + ", ".join(by_name))
-                values[pname] = float(expect(value, (int, float), where, f"{key}.{pname}"))
+                    raise ScenarioError(where, f"{key}.{key_text(obj_name)}.{key_text(comp)}",
+                                        "not a free parameter; allowed: " + ", ".join(by_name))
+                values[pname] = POSE[comp].read(value, where, f"{key}.{pname}")
         layouts[layout_name] = values
     return layouts

@@ -1,34 +1,103 @@
 """Checks of the values read from a scenario file.
 
 Each raises :class:`~rgmcad.errors.ScenarioError` naming the file (``where``), the key and
-what is allowed.
+what is allowed. Numbers are checked against :mod:`rgmcad.scene.schema`.
 """
 
 from __future__ import annotations
 
+import re
+from pathlib import Path
+
 from rgmcad.errors import ScenarioError
+from rgmcad.scene.schema import MAX_FILE_BYTES, MAX_NAME, show
+
+_KINDS = {"str": "a string", "dict": "a table", "list": "a list", "int": "an integer",
+          "float": "a number", "bool": "true/false"}
 
 
 def expect(value, kind, where, key):
     """``value`` if it is of type ``kind`` (a type or a tuple of types; a bool is no number)."""
     kinds = kind if isinstance(kind, tuple) else (kind,)
     if value is None or isinstance(value, bool) and bool not in kinds or not isinstance(value, kinds):
-        names = " or ".join({"str": "a string", "dict": "a table", "list": "a list",
-                             "int": "an integer", "float": "a number", "bool": "true/false"}
-                            [k.__name__] for k in kinds)
-        raise ScenarioError(where, key, f"expected {names}, got {value!r}")
+        names = " or ".join(_KINDS[k.__name__] for k in kinds)
+        raise ScenarioError(where, key, f"expected {names}, got {show(value)}")
     return value
+
+
+def key_text(key) -> str:
+    """A key read from a file as it can appear in a one-line error (quoted when odd)."""
+    if isinstance(key, str) and key and len(key) <= MAX_NAME and all(
+            c.isprintable() and not c.isspace() for c in key):
+        return key
+    return show(key)
 
 
 def check_keys(table, allowed, where, key):
     """Every key of ``table`` is one of ``allowed``."""
     for k in table:
         if k not in allowed:
-            prefix = f"{key}.{k}" if key else k
+            prefix = f"{key}.{key_text(k)}" if key else key_text(k)
             raise ScenarioError(where, prefix, f"unknown key; allowed: {', '.join(allowed)}")
 
 
 def check_name(name, where, key):
-    """A name of an object, run or event: it must not read as a body reference."""
-    if not name or any(c in name for c in ".[] "):
-        raise ScenarioError(where, key, "names cannot contain '.', '[', ']' or spaces")
+    """A name of an object, run, event or layout: letters, digits, ``_`` and ``-`` (it must
+    not read as a body reference, and may name a file)."""
+    if (not isinstance(name, str) or not name or len(name) > MAX_NAME
+            or not all(c.isalnum() or c in "_-" for c in name)):
+        raise ScenarioError(where, key, f"got the name {show(name)}; allowed: 1 to {MAX_NAME} "
+                            "letters, digits, '_' or '-' (no '.', '[', ']' or spaces)")
+
+
+_SCENARIO_NAME = re.compile(r"[A-Za-z0-9_][A-Za-z0-9_.\-]*")
+
+
+def check_scenario_name(name, where, key="name", *, from_file=False):
+    """A scenario's name: it names output folders (``runs/NAME-sSEED``), so it is a plain name
+    of ASCII letters, digits, ``_``, ``-`` and ``.`` (not first), never a path."""
+    if (isinstance(name, str) and len(name) <= MAX_NAME
+            and _SCENARIO_NAME.fullmatch(name) and ".." not in name):
+        return name
+    allowed = (f"1 to {MAX_NAME} ASCII letters, digits, '_', '-' or '.' (not first, not "
+               "'..'): it names output folders")
+    if from_file:
+        raise ScenarioError(where, key, f"the file name {show(name)} is no plain name; add "
+                            f"name = \"...\" with {allowed}")
+    raise ScenarioError(where, key, f"got {show(name)}; allowed: {allowed}")
+
+
+def one_line(error: ScenarioError) -> ScenarioError:
+    """``error`` with any character that would break its one line escaped, and long parts
+    cut (an error must stay one line whatever the file held)."""
+    def clean(text: str, limit: int) -> str:
+        text = "".join(c if c.isprintable() else repr(c)[1:-1] for c in text)
+        return text if len(text) <= limit else text[:limit - 3] + "..."
+
+    where, key, message = clean(error.where, 300), clean(error.key, 300), clean(error.message, 600)
+    if (where, key, message) == (error.where, error.key, error.message):
+        return error
+    return type(error)(where, key, message)
+
+
+def read_text(path: Path, what: str = "scenario file") -> str:
+    """The UTF-8 text of a regular file of at most MAX_FILE_BYTES, or one ScenarioError."""
+    where = str(path)
+    if path.is_dir():
+        raise ScenarioError(where, "", f"is a directory; expected a {what}")
+    if path.exists() and not path.is_file():  # a FIFO or a device could block or never end
+        raise ScenarioError(where, "", f"is not a regular file; expected a {what}")
+    try:
+        with path.open("rb") as f:
+            raw = f.read(MAX_FILE_BYTES + 1)
+    except (OSError, ValueError) as exc:  # ValueError: a NUL in the path
+        reason = getattr(exc, "strerror", None) or exc
+        raise ScenarioError(where, "", f"cannot read the file ({reason})") from None
+    if len(raw) > MAX_FILE_BYTES:
+        raise ScenarioError(where, "", f"the file is larger than {MAX_FILE_BYTES // 2**20} MiB, "
+                            f"the most a {what} may hold")
+    try:
+        return raw.decode("utf-8").removeprefix("\ufeff")
+    except UnicodeDecodeError as exc:
+        raise ScenarioError(where, "", f"not UTF-8 text (byte {exc.start:,} cannot be read); "
+                            "save the file as UTF-8") from None

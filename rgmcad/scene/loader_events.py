@@ -8,13 +8,13 @@ timeout, the point of the body whose motion counts); the graph must be acyclic w
 from __future__ import annotations
 
 import networkx as nx
-import numpy as np
 
 from rgmcad.errors import ScenarioError
 from rgmcad.parts.family import MAIN
 from rgmcad.scene.eventspec import ENDS, EVENT_TYPES, NEGATE_VALUES, POINT_KEYS, Negation
-from rgmcad.scene.loader_checks import check_keys, check_name, expect
+from rgmcad.scene.loader_checks import check_keys, check_name, expect, key_text
 from rgmcad.scene.model import FRAME, EventSpec, SimulationSettings, body_key
+from rgmcad.scene.schema import EVENT, EVENT_PARAMS, MAX_EVENTS, POINT, show
 
 EVENT_COMMON_KEYS = ("type", "after", "join", "negate", "hold", "timeout", "description")
 EVENT_POINT_KEYS = ("point", "end")  # events whose type takes_point
@@ -23,7 +23,7 @@ EVENT_POINT_KEYS = ("point", "end")  # events whose type takes_point
 def _resolve_body(ref, objects, families, runs, where, key) -> str:
     """Canonical body name for an event argument; accepts ``run[-1]`` for a run's last domino."""
     if not isinstance(ref, str):
-        raise ScenarioError(where, key, f"expected an object name, got {ref!r}")
+        raise ScenarioError(where, key, f"expected an object name, got {show(ref)}")
     if "[" in ref and ref.endswith("]"):
         run, _, index = ref[:-1].partition("[")
         if run in runs:
@@ -32,7 +32,7 @@ def _resolve_body(ref, objects, families, runs, where, key) -> str:
                 return runs[run][i]
             except (ValueError, IndexError):
                 raise ScenarioError(where, key, f"run {run!r} has {len(runs[run])} dominoes; "
-                                    f"{ref!r} is not one of them") from None
+                                    f"{show(ref)} is not one of them") from None
     obj_name, _, sub = ref.partition(".")
     obj = objects.get(obj_name)
     if obj is not None and obj.part != FRAME:
@@ -40,7 +40,7 @@ def _resolve_body(ref, objects, families, runs, where, key) -> str:
             return ref
         if sub in families[obj.part].fixed_bodies(obj.params):
             return ref
-    raise ScenarioError(where, key, f"unknown object {ref!r}; events name bodies "
+    raise ScenarioError(where, key, f"unknown object {show(ref)}; events name bodies "
                         "(objects that are parts, run[i] dominoes, or object.axle)")
 
 
@@ -52,15 +52,17 @@ def parse_events(raw, objects, families, runs, where,
     ``settings`` give the default timeout that ``hold`` must fit in.
     """
     raw = expect(raw, dict, where, "events")
+    if len(raw) > MAX_EVENTS:
+        raise ScenarioError(where, "events", f"{len(raw):,} events; at most {MAX_EVENTS:,}")
     settings = settings or SimulationSettings()
     events = {}
     for name, ev in raw.items():
-        key = f"events.{name}"
+        key = f"events.{key_text(name)}"
         check_name(name, where, key)
         ev = expect(ev, dict, where, key)
         etype = ev.get("type")
-        if etype not in EVENT_TYPES:
-            raise ScenarioError(where, f"{key}.type", f"unknown event type {etype!r}; "
+        if not isinstance(etype, str) or etype not in EVENT_TYPES:
+            raise ScenarioError(where, f"{key}.type", f"unknown event type {show(etype)}; "
                                 f"allowed: {', '.join(EVENT_TYPES)}")
         spec = EVENT_TYPES[etype]
         extra = EVENT_POINT_KEYS if spec.takes_point else ()
@@ -78,21 +80,22 @@ def parse_events(raw, objects, families, runs, where,
         params = {}
         for p, default in spec.params.items():
             if p in ev:
-                params[p] = float(expect(ev[p], (int, float), where, f"{key}.{p}"))
+                params[p] = EVENT_PARAMS[p].read(ev[p], where, f"{key}.{p}")
             elif default is None:
                 raise ScenarioError(where, f"{key}.{p}", f"a {etype} event needs {p!r}")
             else:
                 params[p] = default
         after = expect(ev.get("after", []), list, where, f"{key}.after")
+        for i, parent in enumerate(after):
+            expect(parent, str, where, f"{key}.after[{i}]")
         join = ev.get("join", "all")
         if join not in ("all", "any"):
-            raise ScenarioError(where, f"{key}.join", f"unknown join {join!r}; allowed: all, any")
+            raise ScenarioError(where, f"{key}.join",
+                                f"unknown join {show(join)}; allowed: all, any")
         negate = _parse_negate(ev.get("negate", False), where, f"{key}.negate")
         timeout = ev.get("timeout")
         if timeout is not None:
-            timeout = float(expect(timeout, (int, float), where, f"{key}.timeout"))
-            if timeout <= 0:
-                raise ScenarioError(where, f"{key}.timeout", f"must be > 0, got {timeout:g}")
+            timeout = EVENT["timeout"].read(timeout, where, f"{key}.timeout")
         hold = _parse_hold(ev.get("hold", 0.0), timeout, settings, where, key)
         if negate is Negation.ALWAYS:
             _check_always_fits(timeout, settings, where, key)
@@ -107,7 +110,7 @@ def parse_events(raw, objects, families, runs, where,
         for parent in ev.after:
             if parent not in events:
                 raise ScenarioError(where, f"events.{name}.after",
-                                    f"unknown event {parent!r}; allowed: {', '.join(events)}")
+                                    f"unknown event {show(parent)}; allowed: {', '.join(events)}")
             if parent == name:
                 raise ScenarioError(where, f"events.{name}.after", "an event cannot follow itself")
     if events:
@@ -129,12 +132,12 @@ def _parse_negate(value, where, key) -> Negation:
         return Negation(value)
     if value == Negation.ALWAYS.value:
         return Negation.ALWAYS
-    raise ScenarioError(where, key, f"expected {NEGATE_VALUES}, got {value!r}")
+    raise ScenarioError(where, key, f"expected {NEGATE_VALUES}, got {show(value)}")
 
 
 def _parse_hold(value, timeout, settings, where, key) -> float:
     """``hold`` (s): at least 0 and shorter than the event's timeout, or it can never succeed."""
-    hold = float(expect(value, (int, float), where, f"{key}.hold"))
+    hold = EVENT["hold"].read(value, where, f"{key}.hold")
     limit = timeout if timeout is not None else settings.event_timeout
     if not 0 <= hold < limit:
         source = ("its `timeout`" if timeout is not None
@@ -162,7 +165,7 @@ def _parse_point(ev, roles, objects, families, where, key):
     if "end" in ev:
         end = ev["end"]
         if end not in ENDS:
-            raise ScenarioError(where, f"{key}.end", f"unknown end {end!r}; allowed: "
+            raise ScenarioError(where, f"{key}.end", f"unknown end {show(end)}; allowed: "
                                 + ", ".join(f'"{e}"' for e in ENDS))
         for body in roles.values():
             obj_name, sub = body_key(body)
@@ -175,13 +178,8 @@ def _parse_point(ev, roles, objects, families, where, key):
         raw = ev["point"]
         what = "a table { x = ..., y = ..., z = ... } (metres, in the body's part frame)"
         if not isinstance(raw, dict):
-            raise ScenarioError(where, f"{key}.point", f"expected {what}, got {raw!r}")
-        for k, v in raw.items():
-            if k not in POINT_KEYS:
-                raise ScenarioError(where, f"{key}.point.{k}",
-                                    f"unknown key; allowed: {', '.join(POINT_KEYS)}")
-            if isinstance(v, bool) or not isinstance(v, int | float) or not np.isfinite(v):
-                raise ScenarioError(where, f"{key}.point.{k}",
-                                    f"expected a number (metres), got {v!r}")
-        return tuple(float(raw.get(k, 0.0)) for k in POINT_KEYS), None
+            raise ScenarioError(where, f"{key}.point", f"expected {what}, got {show(raw)}")
+        check_keys(raw, POINT_KEYS, where, f"{key}.point")
+        return tuple(POINT[k].read(raw.get(k, 0.0), where, f"{key}.point.{k}")
+                     for k in POINT_KEYS), None
     return None, None
