@@ -8,7 +8,7 @@ import json
 import sys
 from pathlib import Path
 
-from rgmcad.cli.common import add_scenario_arg, say
+from rgmcad.cli.common import add_scenario_arg, say, shipped_parts_only
 
 __all__ = ["configure", "run"]
 
@@ -54,6 +54,7 @@ class _Bar:
 
 
 def run(args) -> int:
+    shipped_parts_only(args, "evaluate")
     from rgmcad.errors import UsageError
     from rgmcad.runs.workflow import evaluate_layout
 

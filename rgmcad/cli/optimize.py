@@ -9,7 +9,7 @@ import json
 import sys
 from pathlib import Path
 
-from rgmcad.cli.common import add_scenario_arg, say
+from rgmcad.cli.common import add_scenario_arg, say, shipped_parts_only
 
 __all__ = ["configure", "run"]
 
@@ -76,6 +76,7 @@ class _Bar:
 
 
 def run(args) -> int:
+    shipped_parts_only(args, "optimize")
     from rgmcad.runs.workflow import optimize_scenario
 
     if not Path(args.build_dir).exists():

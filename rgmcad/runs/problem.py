@@ -113,13 +113,14 @@ class ScenarioContext:
         self._tester = None
 
     @classmethod
-    def load(cls, scenario_path: str | Path, build_dir: str | Path = DEFAULT_BUILD_DIR):
-        """The context of a scenario file; missing parts are built (CadQuery) into
-        ``build_dir``."""
+    def load(cls, scenario_path: str | Path, build_dir: str | Path = DEFAULT_BUILD_DIR,
+             parts_dir: str | Path | None = None):
+        """The context of a scenario file, its part families from ``parts_dir`` (default: the
+        shipped ones); missing parts are built (CadQuery) into ``build_dir``."""
         from rgmcad.scene.bodies import load_parts
         from rgmcad.scene.loader import load_scenario
 
-        scenario = load_scenario(scenario_path)
+        scenario = load_scenario(scenario_path, parts_dir=parts_dir)
         return cls(scenario, load_parts(scenario, Path(build_dir)))
 
     def values(self, x) -> np.ndarray:
@@ -189,6 +190,8 @@ class ScenarioProblem:
         The scenario (TOML).
     build_dir : str or Path
         The part cache (parts are built there if missing).
+    parts_dir : str or Path, optional
+        The folder of part families (``rgmcad --parts DIR``); default: the shipped ones.
 
     Attributes
     ----------
@@ -202,6 +205,7 @@ class ScenarioProblem:
 
     scenario_path: str
     build_dir: str = str(DEFAULT_BUILD_DIR)
+    parts_dir: str | None = None
     dimension: int = field(init=False)
     event_parents: Mapping[str, tuple[str, ...]] = field(init=False)
     any_joins: frozenset[str] = field(init=False)
@@ -210,6 +214,8 @@ class ScenarioProblem:
     def __post_init__(self):
         object.__setattr__(self, "scenario_path", str(Path(self.scenario_path).resolve()))
         object.__setattr__(self, "build_dir", str(Path(self.build_dir).resolve()))
+        if self.parts_dir is not None:
+            object.__setattr__(self, "parts_dir", str(Path(self.parts_dir).resolve()))
         scenario = self.scenario
         object.__setattr__(self, "dimension", scenario.dimension)
         object.__setattr__(self, "event_parents", event_parents(scenario))
@@ -217,8 +223,8 @@ class ScenarioProblem:
 
     def __getstate__(self):  # the context stays in its process
         return {"scenario_path": self.scenario_path, "build_dir": self.build_dir,
-                "dimension": self.dimension, "event_parents": dict(self.event_parents),
-                "any_joins": self.any_joins}
+                "parts_dir": self.parts_dir, "dimension": self.dimension,
+                "event_parents": dict(self.event_parents), "any_joins": self.any_joins}
 
     def __setstate__(self, state):
         object.__setattr__(self, "_context", None)
@@ -230,7 +236,8 @@ class ScenarioProblem:
         worker pool's initializer: ``make_executor(workers, problem.context)``)."""
         if self._context is None:
             object.__setattr__(self, "_context",
-                               ScenarioContext.load(self.scenario_path, self.build_dir))
+                               ScenarioContext.load(self.scenario_path, self.build_dir,
+                                                    self.parts_dir))
         return self._context
 
     @property
