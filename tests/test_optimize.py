@@ -178,9 +178,18 @@ def test_run_store_drops_a_half_written_line_and_appends_after_it(tmp_path):
 
 
 def test_run_store_refuses_other_settings_and_a_second_user(tmp_path):
+    import subprocess
+    import sys
+
     with RunStore(tmp_path, run_identity("s", "0" * 64, 0, TINY)):
-        with pytest.raises(RunDirectoryError, match="another rgmcad process"):
+        with pytest.raises(RunDirectoryError, match=r"this process \(pid \d+\) has this run "
+                           "directory open already"):
             RunStore(tmp_path, run_identity("s", "0" * 64, 0, TINY))
+        # refusing here did not release the lock: another process is refused too
+        other = subprocess.run(
+            [sys.executable, "-c", "import sys; from rgmcad.runs.lock import DirectoryLock; "
+             "DirectoryLock(sys.argv[1])", str(tmp_path)], capture_output=True, text=True)
+        assert other.returncode == 1 and "another rgmcad process" in other.stderr
     with pytest.raises(RunDirectoryError, match="n_initial"):
         RunStore(tmp_path, run_identity("s", "0" * 64, 0, TINY.replace(n_initial=41)))
     # n_jobs changes the speed, not the result

@@ -17,11 +17,12 @@ def configure(p: argparse.ArgumentParser) -> None:
     add_scenario_arg(p)
     p.add_argument("--layout", required=True, help="a named layout of the scenario or a layout "
                    "file (e.g. runs/simple-s0/layout.json)")
-    p.add_argument("--samples", type=int, default=50, help="valid layouts simulated per radius "
-                   "(default 50; 30 radii, so 1500 simulations)")
-    p.add_argument("--seed", type=int, default=0, help="seed of the sampling (default 0)")
-    p.add_argument("--workers", type=int, default=None,
-                   help="simulation processes (default: every CPU); results do not depend on it")
+    p.add_argument("--samples", type=int, default=50, help="valid layouts simulated per radius, "
+                   "1 to 100000 (default 50; 30 radii, so 1500 simulations)")
+    p.add_argument("--seed", type=int, default=0, help="seed of the sampling, 0 to 2^32 - 1 "
+                   "(default 0)")
+    p.add_argument("--workers", type=int, default=None, help="simulation processes, 1 to 4 per "
+                   "CPU (default: every CPU); results do not depend on it")
     p.add_argument("--out", metavar="FILE.png", help="the plot (default: next to a layout file, "
                    "or robustness-SCENARIO-LAYOUT.png here)")
     p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
@@ -55,11 +56,15 @@ class _Bar:
 
 def run(args) -> int:
     shipped_parts_only(args, "evaluate")
-    from rgmcad.errors import UsageError
+    from rgmcad.cli.paths import output_file
+    from rgmcad.runs.checks import MAX_SAMPLES, MAX_SEED, check_range, check_workers, plot_suffixes
     from rgmcad.runs.workflow import evaluate_layout
 
-    if args.samples < 1:
-        raise UsageError("--samples", "", "expected a positive number of layouts per radius")
+    check_range(args.samples, 1, MAX_SAMPLES, "--samples", "a number of layouts per radius")
+    check_range(args.seed, 0, MAX_SEED, "--seed", "a seed")
+    check_workers(args.workers)
+    if args.out is not None:  # and again, trying, by the workflow, with its default
+        output_file(args.out, "--out", plot_suffixes())
     if not Path(args.build_dir).exists():
         sys.stderr.write(f"building parts into {args.build_dir} (first run only)...\n")
     bar = _Bar()

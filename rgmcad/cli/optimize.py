@@ -29,9 +29,11 @@ def configure(p: argparse.ArgumentParser) -> None:
     p.add_argument("--run", dest="run_dir", metavar="DIR", help="run directory (default: "
                    "runs/SCENARIO-sSEED, runs/SCENARIO-small-sSEED for --budget small); the "
                    "same command on the same DIR continues an interrupted run")
-    p.add_argument("--seed", type=int, default=0, help="seed of every random choice (default 0)")
+    p.add_argument("--seed", type=int, default=0,
+                   help="seed of every random choice, 0 to 2^32 - 1 (default 0)")
     p.add_argument("--workers", type=int, default=None,
-                   help="simulation processes (default: every CPU); results do not depend on it")
+                   help="simulation processes, 1 to 4 per CPU (default: every CPU); results do "
+                   "not depend on it")
     p.add_argument("--budget", type=_budget_name, default="default", metavar="{default,small}",
                    help="default: the paper's Table 1 settings; small: a quick look")
     p.add_argument("--json", action="store_true", help="print one JSON summary on stdout")
@@ -77,8 +79,14 @@ class _Bar:
 
 def run(args) -> int:
     shipped_parts_only(args, "optimize")
+    from rgmcad.cli.paths import output_dir
+    from rgmcad.runs.checks import MAX_SEED, check_range, check_workers
     from rgmcad.runs.workflow import optimize_scenario
 
+    check_range(args.seed, 0, MAX_SEED, "--seed", "a seed")
+    check_workers(args.workers)
+    if args.run_dir is not None:  # and again, trying, when the run store opens it
+        output_dir(args.run_dir, "--run")
     if not Path(args.build_dir).exists():
         sys.stderr.write(f"building parts into {args.build_dir} (first run only)...\n")
     bar = _Bar()

@@ -12,20 +12,34 @@ An executor's ``initializer(*initargs)`` runs once in every process that runs it
 *context*: a :class:`~rgmcad.runs.problem.ScenarioContext` that loaded the scenario, its
 parts and a physics engine once. ``map_context(fn, items)`` calls ``fn(context, item)``.
 
+Pool workers die with the process that made the pool, even when it is killed with
+``kill -9`` (which runs no clean-up): on Linux the kernel sends them SIGKILL when it dies
+(``PR_SET_PDEATHSIG``), and on every system a thread in each worker exits it when its
+parent changes. They also drop the descriptors the parent marked with :func:`parent_only`
+(the run directory's simulation file and lock), which a forked worker would otherwise keep
+open. So a killed ``rgmcad optimize`` leaves nothing running behind it
+(docs/decisions.md, "2026-12-01 — Run directory lock and pool workers").
+
 Adding a backend (a Dask cluster, say) is writing one more class with ``workers``,
 ``map`` and ``close``.
 """
 
 from __future__ import annotations
 
+import ctypes
+import multiprocessing
 import os
+import signal
+import sys
+import threading
+import time
 from collections.abc import Callable, Iterable, Iterator, Sequence
 from concurrent.futures import ProcessPoolExecutor
 from functools import partial
 from typing import Any, Protocol
 
 __all__ = ["Executor", "SerialExecutor", "PoolExecutor", "make_executor", "default_workers",
-           "map_blocks"]
+           "max_workers", "map_blocks", "parent_only"]
 
 
 class Executor(Protocol):
@@ -53,6 +67,26 @@ def default_workers() -> int:
         return max(1, len(os.sched_getaffinity(0)))
     except AttributeError:  # not on Linux
         return max(1, os.cpu_count() or 1)
+
+
+def max_workers() -> int:
+    """The most worker processes a pool may have: four per CPU, at most 256 (more only
+    costs memory and start-up time; results never depend on the number)."""
+    return max(1, min(256, 4 * (os.cpu_count() or 1)))
+
+
+_PARENT_ONLY: set[int] = set()
+"""Descriptors of this process that its pool workers must not keep (see :func:`parent_only`)."""
+
+
+def parent_only(fd: int, keep: bool = True) -> None:
+    """Mark the descriptor ``fd`` as this process's alone (``keep=False``: unmark it, before
+    closing it): a pool worker forked later points its copy at ``/dev/null`` when it
+    starts, so it holds no file of its parent's (a run directory's journal, its lock)."""
+    if keep:
+        _PARENT_ONLY.add(fd)
+    else:
+        _PARENT_ONLY.discard(fd)
 
 
 class SerialExecutor:
@@ -93,12 +127,46 @@ def _apply_context_batch(fn: Callable, batch: Sequence) -> list:
     return [fn(_CONTEXT, item) for item in batch]
 
 
-def _start_worker(threads: int, initializer: Callable | None, initargs: Sequence) -> None:
-    """Worker start: cap the BLAS and OpenMP threads of numpy and scikit-learn at
-    ``threads`` (each worker otherwise starts one per CPU, and the workers oversubscribe the
-    cores; the cap stays when the limiter object goes), then the caller's initializer, whose
-    result is the worker's context."""
+PR_SET_PDEATHSIG = 1  # <linux/prctl.h>
+
+
+def _watch_parent(parent: int, interval: float = 1.0) -> None:
+    """Exit this worker once its parent is gone (the thread's whole job)."""
+    while os.getppid() == parent:
+        time.sleep(interval)
+    os._exit(1)
+
+
+def _tie_to_parent(parent: int) -> None:
+    """Make this worker die with ``parent`` and drop the files its parent kept to itself."""
+    if sys.platform.startswith("linux"):
+        try:  # SIGKILL when the thread that forked this process ends: the parent's main thread
+            ctypes.CDLL(None, use_errno=True).prctl(PR_SET_PDEATHSIG, signal.SIGKILL, 0, 0, 0)
+        except (OSError, AttributeError):
+            pass
+    if os.getppid() != parent:  # the parent died before this worker could ask to follow it
+        os._exit(1)
+    threading.Thread(target=_watch_parent, args=(parent,), name="rgmcad-parent-watch",
+                     daemon=True).start()
+    if _PARENT_ONLY:  # inherited through fork; same numbers, now /dev/null
+        null = os.open(os.devnull, os.O_RDWR)
+        for fd in _PARENT_ONLY:
+            try:
+                os.dup2(null, fd, inheritable=False)
+            except OSError:
+                pass
+        os.close(null)
+        _PARENT_ONLY.clear()
+
+
+def _start_worker(parent: int, threads: int, initializer: Callable | None,
+                  initargs: Sequence) -> None:
+    """Worker start: die with ``parent`` (:func:`_tie_to_parent`), cap the BLAS and OpenMP
+    threads of numpy and scikit-learn at ``threads`` (each worker otherwise starts one per
+    CPU, and the workers oversubscribe the cores; the cap stays when the limiter object
+    goes), then the caller's initializer, whose result is the worker's context."""
     global _CONTEXT
+    _tie_to_parent(os.getppid() if parent < 0 else parent)
     from threadpoolctl import threadpool_limits
 
     threadpool_limits(limits=threads)
@@ -123,6 +191,9 @@ class PoolExecutor:
         eight tasks: few enough that scheduling costs little, enough that a slow item does not
         leave the other workers idle for long. The learner's batches of 10 simulations thus go
         one per task (docs/decisions.md).
+
+    The workers start here, all at once, in this thread: on Linux a worker dies when the
+    thread that started it ends, so they must not start in a thread that may end first.
     """
 
     def __init__(self, workers: int, initializer: Callable | None = None,
@@ -132,8 +203,14 @@ class PoolExecutor:
         self.workers = workers
         self.max_batch = max_batch
         threads = max(1, default_workers() // workers)
-        self._pool = ProcessPoolExecutor(workers, initializer=_start_worker,
-                                         initargs=(threads, initializer, tuple(initargs)))
+        context = multiprocessing.get_context()
+        # a forkserver's children are the server's, which dies with this process: -1 says
+        # "the parent you start with"
+        parent = -1 if context.get_start_method() == "forkserver" else os.getpid()
+        self._pool = ProcessPoolExecutor(workers, mp_context=context, initializer=_start_worker,
+                                         initargs=(parent, threads, initializer,
+                                                   tuple(initargs)))
+        self._pool.submit(int)  # starts every worker now (see above)
 
     def map(self, fn, items):
         return self._submit(_apply_batch, fn, items)

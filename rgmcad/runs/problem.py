@@ -67,10 +67,36 @@ class SimRecord:
                 "seconds": self.seconds}
 
     @classmethod
-    def from_json(cls, data: Mapping) -> SimRecord:
-        events = {e: (v[0], v[1]) for e, v in data["events"].items()}
-        return cls(bool(data["valid"]), Outcome(str(data["outcome"])), events,
-                   float(data["seconds"]))
+    def from_json(cls, data: Mapping, events: Sequence[str] | None = None) -> SimRecord:
+        """The record of a stored line, checked: ValueError, saying what is wrong, for
+        anything :meth:`to_json` cannot have written (a missing key, a wrong type, an
+        outcome that contradicts ``valid``, events other than ``events`` when given)."""
+        if not isinstance(data, Mapping):
+            raise ValueError(f"expected a JSON object, got {type(data).__name__}")
+        missing = [k for k in ("valid", "outcome", "events", "seconds") if k not in data]
+        if missing:
+            raise ValueError(f"missing {', '.join(missing)}")
+        valid, outcome, stored = data["valid"], data["outcome"], data["events"]
+        if not isinstance(valid, bool):
+            raise ValueError(f"valid: expected true or false, got {valid!r}")
+        if outcome not in [o.value for o in Outcome] or (outcome == "invalid") == valid:
+            raise ValueError(f"outcome: {outcome!r} with valid {valid}")
+        if not isinstance(stored, Mapping) or (events is not None and set(stored) != set(events)):
+            raise ValueError("events: not the scenario's events")
+        out = {}
+        for e, v in stored.items():
+            if not (isinstance(v, list) and len(v) == 2 and (v[0] is None or v[0] is True
+                    or v[0] is False) and (v[1] is None or _finite(v[1]))):
+                raise ValueError(f"events.{e}: expected [label, time], got {v!r}")
+            out[e] = (v[0], v[1])
+        if not (_finite(data["seconds"]) and data["seconds"] >= 0):
+            raise ValueError(f"seconds: {data['seconds']!r}")
+        return cls(valid, Outcome(outcome), out, float(data["seconds"]))
+
+
+def _finite(v) -> bool:
+    """A JSON number (not a boolean), finite."""
+    return isinstance(v, (int, float)) and not isinstance(v, bool) and bool(np.isfinite(v))
 
 
 def scenario_digest(path: str | Path) -> str:

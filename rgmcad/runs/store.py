@@ -9,8 +9,14 @@ Files::
     simulations.jsonl  one line per finished simulation, written and flushed to the operating
                        system as it arrives and fsynced after each batch: {"i", "vector",
                        "valid", "outcome", "events": {name: [label, time]}, "seconds"}.
-    model.pkl          the trained success model (pickle of the learner's SPDModel).
-    result.json        the summary, written last (atomically): its presence means "finished".
+    simulations.rejected.jsonl
+                       lines of simulations.jsonl that were not simulation records (damaged or
+                       edited), moved aside when the store was opened.
+    model.pkl          the trained success model (pickle of the learner's SPDModel; loading a
+                       pickle can run code, so a run directory is trusted data).
+    result.json        the summary, written last (atomically): its presence means "finished";
+                       it records model.pkl's SHA-256.
+    .lock              who has the directory open (:mod:`rgmcad.runs.lock`).
 
 Why resuming gives the same result: the learner is deterministic given its seed, so a second
 run asks for the same design vectors in the same order; :class:`RecordedProblem` answers those
@@ -21,16 +27,23 @@ line cut short by the kill has no final newline and is dropped (and cut off the 
 store is opened again. A power cut or system crash can lose the batch being simulated (what
 was written but not yet fsynced): one fsync per batch, because one per simulation cost too
 much (docs/decisions.md).
+
+What can be healed is healed, with one warning (logged) each: a line that is not a
+simulation record (garbage, a wrong type, a missing key, a vector of the wrong length) is
+moved to ``simulations.rejected.jsonl`` and the run goes on without it (it is simulated
+again if asked for); a damaged or missing ``result.json`` or ``model.pkl`` of a finished run
+makes it "not finished", and the workflow recomputes it, replaying every simulation. What
+cannot be checked is refused: a directory holding simulations but no ``settings.json``.
 """
 
 from __future__ import annotations
 
-import fcntl
+import hashlib
 import json
 import logging
 import os
 import pickle
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import asdict
 from pathlib import Path
 from typing import Any
@@ -38,11 +51,12 @@ from typing import Any
 import numpy as np
 
 from rgmcad.errors import RunDirectoryError
-from rgmcad.runs.executor import map_blocks
+from rgmcad.runs.executor import map_blocks, parent_only
+from rgmcad.runs.lock import DirectoryLock, LockedError
 from rgmcad.runs.problem import SimRecord, simulate_task, validity_task
 
 __all__ = ["RunStore", "RecordedProblem", "run_identity", "SETTINGS", "SIMULATIONS", "RESULT",
-           "MODEL"]
+           "MODEL", "REJECTED"]
 
 logger = logging.getLogger(__name__)
 
@@ -50,6 +64,7 @@ SETTINGS = "settings.json"
 SIMULATIONS = "simulations.jsonl"
 RESULT = "result.json"
 MODEL = "model.pkl"
+REJECTED = "simulations.rejected.jsonl"
 FORMAT = 1
 
 # LearningSettings fields that change how fast a run goes, never what it finds.
@@ -88,36 +103,58 @@ class RunStore:
     identity : dict
         :func:`run_identity` of the command. A directory whose ``settings.json`` differs is
         refused.
+    dimension, events : optional
+        The design space's dimension and the scenario's events: stored lines with another
+        vector length or other events are moved aside.
 
     Raises
     ------
     RunDirectoryError
         The directory belongs to another run (other scenario, scenario file, seed or
-        settings), or another process has it open.
+        settings), holds simulations but no ``settings.json``, is used by another process
+        (named), or cannot be created or written (a path under a file, a read-only folder).
     """
 
-    def __init__(self, directory: str | Path, identity: Mapping[str, Any]):
+    def __init__(self, directory: str | Path, identity: Mapping[str, Any], *,
+                 dimension: int | None = None, events: Sequence[str] | None = None):
         self.directory = Path(directory)
-        self.directory.mkdir(parents=True, exist_ok=True)
-        self._lock = open(self.directory / ".lock", "w")
-        try:
-            fcntl.flock(self._lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except OSError:
-            self._lock.close()
-            raise RunDirectoryError(str(self.directory), "", "another rgmcad process is using this "
-                                "run directory; wait for it or choose another --run") from None
         self.identity = dict(identity)
-        self._check_identity()
+        self.dimension, self.events = dimension, events
         self.records: dict[bytes, SimRecord] = {}
-        self.n_lines = 0
-        self._load()
-        self._file = open(self.directory / SIMULATIONS, "ab")
+        self.n_lines = self.n_rejected = 0
+        self.model_sha256: str | None = None
+        self._lock = self._file = None
+        try:
+            self.directory.mkdir(parents=True, exist_ok=True)
+            self._lock = DirectoryLock(self.directory)
+            parent_only(self._lock.fd)
+            self._check_identity()
+            self._load()
+            self._file = open(self.directory / SIMULATIONS, "ab")
+            parent_only(self._file.fileno())
+        except LockedError as exc:
+            raise RunDirectoryError(str(self.directory), "", str(exc)) from None
+        except RunDirectoryError:
+            self.close()
+            raise
+        except (OSError, ValueError) as exc:  # ValueError: a path with a NUL byte
+            self.close()
+            raise RunDirectoryError(repr(str(self.directory)), "", "cannot be used as a run "
+                                    f"directory ({_reason(exc)}); choose another --run") from None
+        except BaseException:
+            self.close()
+            raise
 
     # --- opening -----------------------------------------------------------------------------
 
     def _check_identity(self) -> None:
         path = self.directory / SETTINGS
         if not path.exists():
+            held = [n for n in (SIMULATIONS, RESULT, MODEL) if (self.directory / n).exists()]
+            if held:
+                raise RunDirectoryError(str(path), "", f"missing, but the directory holds a run "
+                                        f"({', '.join(held)}) that cannot be checked to be this "
+                                        "one; restore settings.json, or choose another --run")
             _write_atomic(path, (json.dumps(self.identity, indent=1) + "\n").encode())
             return
         try:
@@ -146,18 +183,52 @@ class RunStore:
                 f.truncate(end)
                 f.flush()
                 os.fsync(f.fileno())
-        for n, line in enumerate(data[:end].splitlines(), 1):
+        good, bad = [], []
+        for n, line in enumerate(data[:end].splitlines(keepends=True), 1):
             if not line.strip():
                 continue
             try:
-                row = json.loads(line)
-                x = np.asarray(row["vector"], dtype=float)
-                record = SimRecord.from_json(row)
-            except (ValueError, KeyError, TypeError, IndexError) as exc:
-                raise RunDirectoryError(str(path), f"line {n}", f"not a simulation record ({exc}); "
-                                    "the file was edited or damaged") from None
+                x, record = self._parse(line)
+            except ValueError as exc:
+                bad.append((n, line, str(exc)))
+                continue
+            good.append(line)
             self.records[_key(x)] = record
             self.n_lines += 1
+        if bad:
+            self._set_aside(path, good, bad)
+
+    def _parse(self, line: bytes) -> tuple[np.ndarray, SimRecord]:
+        """(vector, record) of a line of the journal, or ValueError saying what is wrong."""
+        try:
+            row = json.loads(line)
+            record = SimRecord.from_json(row, self.events)
+            vector = row["vector"]
+            if not (isinstance(vector, list) and all(
+                    isinstance(v, (int, float)) and not isinstance(v, bool) for v in vector)):
+                raise ValueError("vector: expected a list of numbers")
+            x = np.asarray(vector, dtype=float)
+        except (ValueError, KeyError, TypeError, IndexError, RecursionError) as exc:
+            raise ValueError(str(exc) if isinstance(exc, ValueError) else repr(exc)) from None
+        if x.ndim != 1 or not np.all(np.isfinite(x)) or (
+                self.dimension is not None and len(x) != self.dimension):
+            raise ValueError(f"vector: expected {self.dimension or 'some'} finite numbers, "
+                             f"got {len(x)}")
+        return x, record
+
+    def _set_aside(self, path: Path, good: list[bytes], bad: list) -> None:
+        """Move the lines ``bad`` ((number, bytes, why)) to REJECTED, keep ``good``."""
+        aside = self.directory / REJECTED
+        with open(aside, "ab") as f:
+            f.write(b"".join(line for _, line, _ in bad))
+            f.flush()
+            os.fsync(f.fileno())
+        _write_atomic(path, b"".join(good))  # after the copy: a crash between loses nothing
+        n, _, why = bad[0]
+        self.n_rejected = len(bad)
+        logger.warning("%s: %d line(s) that are not simulation records (line %d: %s) moved to "
+                       "%s; the run continues without them", path, len(bad), n, why[:120],
+                       REJECTED)
 
     # --- simulations -------------------------------------------------------------------------
 
@@ -193,25 +264,62 @@ class RunStore:
         _write_atomic(path, (json.dumps(result, indent=1) + "\n").encode())
         return path
 
-    def read_result(self) -> dict:
-        return json.loads((self.directory / RESULT).read_text())
+    def read_result(self) -> dict | None:
+        """The summary of a finished run; None when there is none, or when ``result.json``
+        or the ``model.pkl`` it records is damaged or missing (a warning says which): the run
+        is then to be recomputed. The model is checked by its SHA-256, never unpickled."""
+        path = self.directory / RESULT
+        if not path.exists():
+            return None
+        try:
+            result = json.loads(path.read_text())
+            if not isinstance(result, dict) or not {"vector", "verified"} <= set(result):
+                raise ValueError("not a run summary")
+        except (OSError, ValueError) as exc:
+            logger.warning("%s: unreadable (%s); recomputing the run from %s", path,
+                           str(exc)[:120], SIMULATIONS)
+            return None
+        model = self.directory / MODEL
+        try:
+            digest = hashlib.sha256(model.read_bytes()).hexdigest()
+        except OSError:
+            digest = None
+        if digest is None or result.get("model_sha256", digest) != digest:
+            logger.warning("%s: %s; recomputing the run from %s", model,
+                           "missing" if digest is None else "damaged (not the model the run "
+                           "saved)", SIMULATIONS)
+            return None
+        return result
 
     def save_model(self, model) -> Path:
+        """Pickle ``model`` to ``model.pkl``; :attr:`model_sha256` is then its SHA-256."""
         path = self.directory / MODEL
-        _write_atomic(path, pickle.dumps(model, protocol=pickle.HIGHEST_PROTOCOL))
+        data = pickle.dumps(model, protocol=pickle.HIGHEST_PROTOCOL)
+        _write_atomic(path, data)
+        self.model_sha256 = hashlib.sha256(data).hexdigest()
         return path
 
     def close(self) -> None:
-        if not self._file.closed:
+        if self._file is not None and not self._file.closed:
+            parent_only(self._file.fileno(), keep=False)
             self._file.close()
-        if not self._lock.closed:
-            self._lock.close()
+        if self._lock is not None and self._lock.fd is not None:
+            parent_only(self._lock.fd, keep=False)
+            self._lock.release()
 
     def __enter__(self):
         return self
 
     def __exit__(self, *exc):
         self.close()
+
+
+def _reason(exc: OSError | ValueError) -> str:
+    """What went wrong, without Python's decoration ("Permission denied: 'DIR/.lock'")."""
+    if not isinstance(exc, OSError):
+        return str(exc)
+    where = f": {exc.filename}" if exc.filename else ""
+    return f"{exc.strerror or exc}{where}"
 
 
 class _Missing:

@@ -25,6 +25,13 @@ from pathlib import Path
 import numpy as np
 
 from rgmcad.parts.store import DEFAULT_BUILD_DIR
+from rgmcad.runs.checks import (
+    MAX_SAMPLES,
+    MAX_SEED,
+    check_plot_file,
+    check_range,
+    check_workers,
+)
 from rgmcad.runs.executor import make_executor, map_blocks
 from rgmcad.runs.problem import (
     ScenarioProblem,
@@ -114,14 +121,15 @@ def optimize_scenario(
     Parameters
     ----------
     scenario_path : the scenario file.
-    seed : of every random choice.
+    seed : of every random choice, 0..2^32 - 1.
     budget : name of the settings (:func:`~rgmcad.learning.settings.budget`); part of the
         default run directory's name and of the summary.
     settings : LearningSettings, optional
         Instead of the budget's.
     run_dir : default :func:`default_run_dir`. A directory made for other settings is
         refused (:class:`~rgmcad.errors.RunDirectoryError`).
-    workers : simulation processes (None: every CPU); results do not depend on it.
+    workers : simulation processes, 1..:func:`~rgmcad.runs.executor.max_workers` (None: every
+        CPU); results do not depend on it.
     recorded : ``recorded(problem, store, executor, on_simulation)``: the problem the learner
         sees (a subclass of :class:`~rgmcad.runs.store.RecordedProblem` that times its calls,
         say).
@@ -131,14 +139,17 @@ def optimize_scenario(
     from rgmcad.scene.loader import load_scenario
 
     progress = progress or RunProgress()
+    check_range(seed, 0, MAX_SEED, "seed", "a seed")
+    check_workers(workers, "workers")
     scenario = load_scenario(scenario_path)
     settings = budget_settings(budget) if settings is None else settings
     identity = run_identity(scenario.name, scenario_digest(scenario_path), seed, settings)
     run_dir = Path(run_dir) if run_dir else default_run_dir(scenario.name, budget, seed)
-    with RunStore(run_dir, identity) as store:
-        if store.finished and (run_dir / LAYOUT_FILE).exists():
-            return OptimizationRun(run_dir, store.read_result(), True,
-                                   time.perf_counter() - start)
+    with RunStore(run_dir, identity, dimension=len(scenario.free),
+                  events=list(scenario.events)) as store:
+        summary = store.read_result()  # None unless finished, with its model intact
+        if summary is not None and _readable_json(run_dir / LAYOUT_FILE):
+            return OptimizationRun(run_dir, summary, True, time.perf_counter() - start)
         from rgmcad.learning import learn_and_optimize
         from rgmcad.learning.parallel import jobs_on
 
@@ -215,6 +226,14 @@ def _at_layout(model, result, chosen: dict, x: np.ndarray):
     return per_event, probability, weakest, weakest_probability, tol
 
 
+def _readable_json(path: Path) -> bool:
+    try:
+        json.loads(path.read_text())
+        return True
+    except (OSError, ValueError):
+        return False
+
+
 def _write_json(path: Path, data) -> Path:
     path.write_text(json.dumps(data, indent=1) + "\n")
     return path
@@ -282,6 +301,7 @@ def _write_outputs(scenario, store, recorded, result, chosen, wall_time, seed, b
         "factors": {e: _factor(scenario, result, e) for e in model.events},
         "seed": seed,
         "budget": budget,
+        "model_sha256": store.model_sha256,
         "files": {"layout": LAYOUT_FILE, "start": START_FILE, "report": REPORT_FILE,
                   "slice_plot": SLICE_PLOT, "progress_plot": PROGRESS_PLOT, "model": MODEL,
                   "simulations": SIMULATIONS, "settings": SETTINGS},
@@ -321,8 +341,9 @@ def evaluate_layout(
     Parameters
     ----------
     layout : a named layout of the scenario or a layout file.
-    samples : valid layouts simulated per radius.
-    plot : the PNG to write; default: beside a layout file, else
+    samples : valid layouts simulated per radius, 1..100 000.
+    plot : the PNG (or any matplotlib format) to write, checked before the simulations;
+        default: beside a layout file, else
         ``robustness-SCENARIO-LAYOUT.png`` in the working directory.
 
     Returns
@@ -336,12 +357,16 @@ def evaluate_layout(
     from rgmcad.scene.loader import load_scenario
 
     progress = progress or RunProgress()
+    check_range(samples, 1, MAX_SAMPLES, "samples", "a number of layouts per radius")
+    check_range(seed, 0, MAX_SEED, "seed", "a seed")
+    check_workers(workers, "workers")
     scenario = load_scenario(scenario_path)
     name, values = resolve_layout(scenario, layout, None)
     x = vector_from_values(scenario, values)
     if plot is None:
         plot = (Path(layout).with_name(f"{Path(layout).stem}-robustness.png")
                 if Path(layout).is_file() else Path(f"robustness-{scenario.name}-{name}.png"))
+    check_plot_file(plot, "plot")  # before the simulations, not after
     start = time.perf_counter()
     problem = ScenarioProblem(scenario_path, build_dir)
     executor = make_executor(workers, problem.context)
