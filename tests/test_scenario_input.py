@@ -12,6 +12,7 @@ import copy
 import dataclasses
 import datetime
 import enum
+import json
 import logging
 import math
 import os
@@ -263,6 +264,13 @@ def test_parts_option_loads_families_from_a_folder(tmp_path, capsys):
     assert "marble" in capsys.readouterr().out
     assert main(["--parts", str(tmp_path / "nowhere"), "check", str(file)]) == 2
     assert "--parts" in capsys.readouterr().err
+    # the commands that simulate many layouts use them too, in their worker processes
+    plot = tmp_path / "curve.png"
+    assert main([*args[:2], "evaluate", str(file), "--layout", "initial", "--samples", "1",
+                 "--workers", "1", "--out", str(plot), "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["simulations"] > 0 and plot.is_file()
+    assert main([*args[:2], "build", "parts", str(file), "--out", str(tmp_path / "b")]) == 0
+    assert "marble" in (tmp_path / "b" / "manifest.json").read_text()
 
 
 # --- the corpus of bad scenarios, through the CLI ---------------------------------------------

@@ -5,7 +5,7 @@ from __future__ import annotations
 import sys
 import time
 
-from rgmcad.cli.common import say
+from rgmcad.cli.common import parts_dir_arg, say
 from rgmcad.cli.paths import output_dir
 
 USES_BUILD_DIR = False
@@ -30,7 +30,7 @@ def run(args) -> int:
     out = output_dir(args.out if given else args.build_dir, "--out" if given else "--build-dir",
                      files=("manifest.json",))
     paths = [scenario_path(p) for p in args.scenarios] or list(shipped_scenarios().values())
-    scenarios = [load_scenario(p) for p in paths]
+    scenarios = [load_scenario(p, parts_dir=parts_dir_arg(args)) for p in paths]
     bar = tqdm(total=None, unit="part", desc="building parts", file=sys.stderr)
     counts = {"built": 0, "cached": 0}
 

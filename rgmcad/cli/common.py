@@ -37,16 +37,6 @@ def parts_dir_arg(args) -> Path | None:
     return Path(parts).resolve()
 
 
-def shipped_parts_only(args, command: str) -> None:
-    """Refuse ``--parts`` in a command whose workflow cannot pass it on yet, rather than
-    silently use the shipped families."""
-    if getattr(args, "parts", None) is not None:
-        from rgmcad.errors import UsageError
-
-        raise UsageError("--parts", "", f"{command} uses the shipped part families only (for "
-                         "now); run it without --parts")
-
-
 def load_scenario_arg(args):
     """The scenario named by ``args.scenario`` (a file, or a shipped scenario's name), its
     part families from ``--parts DIR`` if given."""

@@ -8,7 +8,7 @@ import json
 import sys
 from pathlib import Path
 
-from rgmcad.cli.common import add_scenario_arg, say, shipped_parts_only
+from rgmcad.cli.common import add_scenario_arg, parts_dir_arg, say
 
 __all__ = ["configure", "run"]
 
@@ -55,7 +55,6 @@ class _Bar:
 
 
 def run(args) -> int:
-    shipped_parts_only(args, "evaluate")
     from rgmcad.cli.paths import output_file
     from rgmcad.runs.checks import MAX_SAMPLES, MAX_SEED, check_range, check_workers, plot_suffixes
     from rgmcad.runs.workflow import evaluate_layout
@@ -71,7 +70,8 @@ def run(args) -> int:
     try:
         result = evaluate_layout(args.scenario, args.layout, samples=args.samples,
                                  seed=args.seed, workers=args.workers,
-                                 build_dir=args.build_dir, plot=args.out, progress=bar)
+                                 build_dir=args.build_dir, plot=args.out, progress=bar,
+                                 parts_dir=parts_dir_arg(args))
     finally:
         bar.close()
     if args.json:

@@ -9,7 +9,7 @@ import json
 import sys
 from pathlib import Path
 
-from rgmcad.cli.common import add_scenario_arg, say, shipped_parts_only
+from rgmcad.cli.common import add_scenario_arg, parts_dir_arg, say
 
 __all__ = ["configure", "run"]
 
@@ -78,7 +78,6 @@ class _Bar:
 
 
 def run(args) -> int:
-    shipped_parts_only(args, "optimize")
     from rgmcad.cli.paths import output_dir
     from rgmcad.runs.checks import MAX_SEED, check_range, check_workers
     from rgmcad.runs.workflow import optimize_scenario
@@ -93,7 +92,8 @@ def run(args) -> int:
     try:
         done = optimize_scenario(args.scenario, seed=args.seed, budget=args.budget,
                                  run_dir=args.run_dir, workers=args.workers,
-                                 build_dir=args.build_dir, progress=bar)
+                                 build_dir=args.build_dir, progress=bar,
+                                 parts_dir=parts_dir_arg(args))
     finally:
         bar.close()
     if done.finished_before:

@@ -71,13 +71,17 @@ FORMAT = 1
 _NOT_IDENTITY = ("n_jobs",)
 
 
-def run_identity(scenario_name: str, scenario_sha256: str, seed: int, settings) -> dict:
-    """The content of ``settings.json`` for a run (JSON types only)."""
+def run_identity(scenario_name: str, scenario_sha256: str, seed: int, settings,
+                 parts: dict[str, str] | None = None) -> dict:
+    """The content of ``settings.json`` for a run (JSON types only). ``parts``: the digest
+    of each family of a ``--parts`` folder, when the run uses one (runs with the shipped
+    families leave it out, as they always have)."""
     learning = {k: v for k, v in asdict(settings).items() if k not in _NOT_IDENTITY}
-    return json.loads(json.dumps({
-        "format": FORMAT, "scenario": scenario_name, "scenario_sha256": scenario_sha256,
-        "seed": int(seed), "settings": learning,
-    }))
+    identity = {"format": FORMAT, "scenario": scenario_name, "scenario_sha256": scenario_sha256,
+                "seed": int(seed), "settings": learning}
+    if parts is not None:
+        identity["parts"] = dict(sorted(parts.items()))
+    return json.loads(json.dumps(identity))
 
 
 def _key(x) -> bytes:

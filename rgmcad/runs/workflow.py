@@ -24,6 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
+from rgmcad.parts.family import family_digest
 from rgmcad.parts.store import DEFAULT_BUILD_DIR
 from rgmcad.runs.checks import (
     MAX_SAMPLES,
@@ -115,6 +116,7 @@ def optimize_scenario(
     run_dir: str | Path | None = None, workers: int | None = None,
     build_dir: str | Path = DEFAULT_BUILD_DIR, progress: RunProgress | None = None,
     recorded: Callable[..., RecordedProblem] = RecordedProblem,
+    parts_dir: str | Path | None = None,
 ) -> OptimizationRun:
     """Optimise a scenario's layout in a run directory, or continue an interrupted run there.
 
@@ -133,6 +135,8 @@ def optimize_scenario(
     recorded : ``recorded(problem, store, executor, on_simulation)``: the problem the learner
         sees (a subclass of :class:`~rgmcad.runs.store.RecordedProblem` that times its calls,
         say).
+    parts_dir : a folder of the user's part families (``--parts``; None: the shipped ones).
+        Their digests join the run's identity.
     """
     start = time.perf_counter()
     from rgmcad.learning.settings import budget as budget_settings
@@ -141,9 +145,11 @@ def optimize_scenario(
     progress = progress or RunProgress()
     check_range(seed, 0, MAX_SEED, "seed", "a seed")
     check_workers(workers, "workers")
-    scenario = load_scenario(scenario_path)
+    scenario = load_scenario(scenario_path, parts_dir=parts_dir)
     settings = budget_settings(budget) if settings is None else settings
-    identity = run_identity(scenario.name, scenario_digest(scenario_path), seed, settings)
+    parts = None if parts_dir is None else {
+        name: family_digest(family) for name, family in scenario.families.items()}
+    identity = run_identity(scenario.name, scenario_digest(scenario_path), seed, settings, parts)
     run_dir = Path(run_dir) if run_dir else default_run_dir(scenario.name, budget, seed)
     with RunStore(run_dir, identity, dimension=len(scenario.free),
                   events=list(scenario.events)) as store:
@@ -153,7 +159,7 @@ def optimize_scenario(
         from rgmcad.learning import learn_and_optimize
         from rgmcad.learning.parallel import jobs_on
 
-        problem = ScenarioProblem(scenario_path, build_dir)
+        problem = ScenarioProblem(scenario_path, build_dir, parts_dir)
         executor = make_executor(workers, problem.context)
         try:
             learner_problem = recorded(problem, store, executor, progress.simulated)
@@ -334,6 +340,7 @@ def evaluate_layout(
     scenario_path: str | Path, layout: str, *, samples: int = 50, seed: int = 0,
     workers: int | None = None, build_dir: str | Path = DEFAULT_BUILD_DIR,
     plot: str | Path | None = None, progress: RunProgress | None = None,
+    parts_dir: str | Path | None = None,
 ) -> dict:
     """Local robustness of a layout at every radius and its global robustness rho_g
     (:func:`~rgmcad.runs.robustness.local_robustness`), and their plot.
@@ -345,6 +352,7 @@ def evaluate_layout(
     plot : the PNG (or any matplotlib format) to write, checked before the simulations;
         default: beside a layout file, else
         ``robustness-SCENARIO-LAYOUT.png`` in the working directory.
+    parts_dir : a folder of the user's part families (``--parts``; None: the shipped ones).
 
     Returns
     -------
@@ -360,7 +368,7 @@ def evaluate_layout(
     check_range(samples, 1, MAX_SAMPLES, "samples", "a number of layouts per radius")
     check_range(seed, 0, MAX_SEED, "seed", "a seed")
     check_workers(workers, "workers")
-    scenario = load_scenario(scenario_path)
+    scenario = load_scenario(scenario_path, parts_dir=parts_dir)
     name, values = resolve_layout(scenario, layout, None)
     x = vector_from_values(scenario, values)
     if plot is None:
@@ -368,7 +376,7 @@ def evaluate_layout(
                 if Path(layout).is_file() else Path(f"robustness-{scenario.name}-{name}.png"))
     check_plot_file(plot, "plot")  # before the simulations, not after
     start = time.perf_counter()
-    problem = ScenarioProblem(scenario_path, build_dir)
+    problem = ScenarioProblem(scenario_path, build_dir, parts_dir)
     executor = make_executor(workers, problem.context)
     progress.stage("validity")
 
