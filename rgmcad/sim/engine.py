@@ -8,7 +8,7 @@ pattern): ``engine.stepSimulation()`` is ``pb.stepSimulation(physicsClientId=eng
 
 A world resets its engine when it is built (a fresh run, which restoring a saved state is
 not: stale contact caches), so an engine holds one live world at a time. Connecting costs
-about as much as a short simulation (docs/decisions.md, 2026-12-02), so a caller that
+about as much as a short simulation (docs/decisions.md, "Simulation and runs stages"), so a caller that
 simulates many layouts (a worker process, :class:`~rgmcad.runs.problem.ScenarioContext`)
 keeps one engine and hands it to each world; a world given none makes its own and closes
 it with itself.
