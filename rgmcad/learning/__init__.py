@@ -18,6 +18,15 @@ parameters each event depends on), ``factorize``, ``optimize``, ``pipeline``, ``
 import logging
 
 from .active import ActiveLearningResult, learn_active, query_distribution, synthesize_queries
+from .baselines import (
+    BASELINES,
+    BaselineResult,
+    cmaes_search,
+    gp_search,
+    local_estimate,
+    random_search,
+    uniform_search,
+)
 from .classifier import SuccessClassifier
 from .dimensions import EventAnalysis, analyse_event, select_dimensions
 from .factorize import (
@@ -55,6 +64,13 @@ from .verify import Candidate, Verification, verify_layout
 logging.getLogger(__name__).addHandler(logging.NullHandler())
 
 __all__ = [
+    "BASELINES",
+    "BaselineResult",
+    "cmaes_search",
+    "gp_search",
+    "local_estimate",
+    "random_search",
+    "uniform_search",
     "ActiveLearningResult",
     "BallRegion",
     "Candidate",
