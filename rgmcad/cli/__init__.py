@@ -31,6 +31,8 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "optimize": ("optimize",
                  "learn the success probability and optimise a robust layout (resumable run)"),
     "evaluate": ("evaluate", "measure a layout's local and global robustness by simulation"),
+    "benchmark": ("benchmark", "compare our method with the paper's baselines and CMA-ES "
+                  "(a table like Table 1, resumable)"),
 }
 """Command -> (module of rgmcad.cli, help). Multi-word commands are sub-commands."""
 

@@ -1,0 +1,93 @@
+"""``rgmcad benchmark``: our method against the paper's baselines and CMA-ES on one scenario,
+a table like the paper's Table 1 and a figure like its Fig. 15
+(:func:`rgmcad.runs.benchmark.run_benchmark`); resumable."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+from rgmcad.cli.common import add_scenario_arg, say
+
+__all__ = ["configure", "run"]
+
+USES_BUILD_DIR = True
+
+
+def _methods(text: str) -> tuple[str, ...]:
+    from rgmcad.runs.benchmark import METHODS
+
+    names = tuple(w.strip() for w in text.split(",") if w.strip())
+    bad = [n for n in names if n not in METHODS]
+    if bad or not names or len(set(names)) != len(names):
+        raise argparse.ArgumentTypeError(f"{text!r}: expected distinct names among "
+                                         f"{','.join(METHODS)}")
+    return names
+
+
+def _budget_name(name: str) -> str:
+    from rgmcad.learning.settings import BUDGETS
+
+    if name not in BUDGETS:
+        raise argparse.ArgumentTypeError(f"unknown budget {name!r}; valid: {', '.join(BUDGETS)}")
+    return name
+
+
+def configure(p: argparse.ArgumentParser) -> None:
+    add_scenario_arg(p)
+    p.add_argument("--out", metavar="DIR", help="where the runs, the table and the figure go "
+                   "(default: benchmarks/SCENARIO); the same command on the same DIR continues "
+                   "an interrupted benchmark")
+    p.add_argument("--methods", type=_methods, default=None, metavar="M1,M2",
+                   help="among ours,b1,b2,b3,cma (default: all)")
+    p.add_argument("--trials", type=int, default=10, help="runs of each method, seeds SEED.."
+                   "SEED+T-1 (default 10, as the paper)")
+    p.add_argument("--seed", type=int, default=0, help="base seed (default 0)")
+    p.add_argument("--budget-sims", type=int, default=None, metavar="B",
+                   help="simulations per baseline run (default: the mean our method used)")
+    p.add_argument("--samples", type=int, default=50, help="valid layouts per radius in the "
+                   "evaluation of each layout (default 50; 30 radii)")
+    p.add_argument("--ours-budget", type=_budget_name, default="default",
+                   metavar="{default,small}", help="settings of our method (default: the "
+                   "paper's Table 1 settings)")
+    p.add_argument("--workers", type=int, default=None, help="simulation processes, 1 to 4 per "
+                   "CPU (default: every CPU); results do not depend on it")
+    p.add_argument("--json", action="store_true", help="print the table as one JSON object")
+
+
+class _Stages:
+    """One stderr line per stage (method and trial)."""
+
+    def stage(self, name: str, total: int | None = None) -> None:
+        if " t" in name:
+            sys.stderr.write(f"{name}\n")
+
+    def simulated(self, record, replayed: bool = False) -> None:
+        pass
+
+    def tested(self, n: int) -> None:
+        pass
+
+
+def run(args) -> int:
+    from rgmcad.cli.paths import output_dir
+    from rgmcad.runs.benchmark import METHODS, TABLE_MD, run_benchmark
+    from rgmcad.runs.checks import check_workers
+    from rgmcad.scene.loader import load_scenario
+
+    check_workers(args.workers)
+    scenario = load_scenario(args.scenario)  # a bad scenario is refused before any folder
+    out = args.out if args.out is not None else str(Path("benchmarks") / scenario.name)
+    output_dir(out, "--out")
+    table = run_benchmark(args.scenario, out, methods=args.methods or METHODS,
+                          trials=args.trials, seed=args.seed, budget_sims=args.budget_sims,
+                          samples=args.samples, ours_budget=args.ours_budget,
+                          workers=args.workers, build_dir=args.build_dir, progress=_Stages())
+    if args.json:
+        say(json.dumps(table))
+        return 0
+    say((Path(out) / TABLE_MD).read_text().rstrip())
+    say(f"table and figure in {out}")
+    return 0

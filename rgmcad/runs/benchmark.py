@@ -1,0 +1,318 @@
+"""``rgmcad benchmark``: our method against the paper's baselines and CMA-ES, like the paper's
+Table 1 and Fig. 15 (section 8.3; SPEC 5.6).
+
+For each method, ``trials`` runs with seeds ``seed + i``; every method gets the same
+simulation budget ``B`` (``budget_sims``, or the mean number of simulations our method used,
+validity tests, discarded active-learning labels and the final verification not counted,
+as the authors counted). Each returned layout is evaluated by one protocol,
+:func:`~rgmcad.runs.robustness.local_robustness` with ``samples`` valid layouts per radius,
+and with **common random numbers**: at trial ``i`` every method's layout is perturbed with
+the same generator (seeded by ``seed + i``), so the draws differ only where the ball around
+one layout leaves the cube or holds invalid layouts and another's does not.
+
+Everything is resumable: each method's trial and each evaluation is a run directory
+(:class:`~rgmcad.runs.store.RunStore`: every simulation journaled, replayed on the next
+call) under ``out/``, finished by a small ``trial.json``; the methods are deterministic given
+their seed, so a benchmark killed at any point and run again gives the same table. Layout::
+
+    out/ours/t{i}/              an ``rgmcad optimize`` run directory
+    out/{method}-B{B}/t{i}/     a baseline's simulations and trial.json
+    out/eval/{method}[-B{B}]/t{i}/   the evaluation of that trial's layout
+    out/benchmark.md, benchmark.json, robustness.png
+
+Times: ``time_s`` is the simulations' own seconds (from the journal, so a resumed trial
+counts what its killed predecessor simulated) plus the method's computation outside the
+simulations in the call that finished it: a cost on one core, independent of ``workers``.
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from pathlib import Path
+
+import numpy as np
+
+from rgmcad.runs.checks import MAX_SAMPLES, MAX_SEED, check_range, check_workers
+from rgmcad.runs.executor import make_executor
+from rgmcad.runs.problem import ScenarioProblem, scenario_digest
+from rgmcad.runs.store import RecordedProblem, RunStore, _write_atomic
+
+__all__ = ["METHODS", "LABELS", "TRIAL", "TABLE_MD", "TABLE_JSON", "PLOT", "run_benchmark",
+           "budget_of_ours"]
+
+METHODS = ("ours", "b1", "b2", "b3", "cma")
+LABELS = {"ours": "ours (factorised SPD)", "b1": "B1 random search",
+          "b2": "B2 uniform + local robustness", "b3": "B3 GP optimisation (EI)",
+          "cma": "CMA-ES"}
+TRIAL = "trial.json"
+TABLE_MD, TABLE_JSON, PLOT = "benchmark.md", "benchmark.json", "robustness.png"
+_EVAL_STREAM = 0x5EEDE7A1  # the evaluation's generator: [seed + i, this]
+
+
+def _read(path: Path) -> dict | None:
+    try:
+        data = json.loads(path.read_text())
+        return data if isinstance(data, dict) else None
+    except (OSError, ValueError):
+        return None
+
+
+def _write(path: Path, data: dict) -> None:
+    _write_atomic(path, (json.dumps(data, indent=1) + "\n").encode())
+
+
+class _Timed(RecordedProblem):
+    """A recorded problem that adds up the time spent waiting for simulations and the
+    simulations' own seconds (replayed ones included)."""
+
+    wait_seconds = 0.0
+    sim_seconds = 0.0
+
+    def submit_records(self, X):
+        wait = super().submit_records(X)
+
+        def timed():
+            t = time.perf_counter()
+            records = wait()
+            self.wait_seconds += time.perf_counter() - t
+            self.sim_seconds += sum(r.seconds for r in records)
+            return records
+
+        return timed
+
+
+def budget_of_ours(summary: dict) -> int:
+    """Simulations of an ``optimize`` run counted in the budget: exploration and labelled
+    active learning (SPEC 5.6), not verification nor discarded labels."""
+    by_stage = summary.get("simulations_by_stage", {})
+    return int(summary["simulations"] - by_stage.get("verification", 0)
+               - summary.get("discarded", 0))
+
+
+def _ours(scenario_path, out: Path, seed: int, budget: str, settings, workers, build_dir,
+          progress) -> dict:
+    from rgmcad.runs.workflow import optimize_scenario
+
+    run_dir = out / "ours" / f"t{seed}"
+    done = _read(run_dir / TRIAL)
+    if done is not None:
+        return done
+    timed: list[_Timed] = []
+
+    def recorded(*args):
+        timed.append(_Timed(*args))
+        return timed[-1]
+
+    start = time.perf_counter()
+    run = optimize_scenario(scenario_path, seed=seed, budget=budget, settings=settings,
+                            run_dir=run_dir, workers=workers, build_dir=build_dir,
+                            progress=progress, recorded=recorded)
+    s = run.summary
+    wall = time.perf_counter() - start
+    overhead = wall - timed[0].wait_seconds if timed else 0.0
+    trial = {"method": "ours", "seed": seed, "vector": s["vector"],
+             "budget_sims": budget_of_ours(s), "simulations": s["simulations"],
+             "score": s["probability"], "time_s": s["simulation_seconds"] + overhead}
+    _write(run_dir / TRIAL, trial)
+    return trial
+
+
+def _baseline(method: str, identity: dict, run_dir: Path, problem, executor, budget: int,
+              seed: int, progress) -> dict:
+    from rgmcad.learning.baselines import BASELINES
+
+    done = _read(run_dir / TRIAL)
+    if done is not None:
+        return done
+    scenario = problem.scenario
+    with RunStore(run_dir, identity, dimension=problem.dimension,
+                  events=list(scenario.events)) as store:
+        recorded = _Timed(problem, store, executor, progress.simulated)
+        start = time.perf_counter()
+        r = BASELINES[method](recorded, budget, seed)
+        overhead = time.perf_counter() - start - recorded.wait_seconds
+        trial = {"method": method, "seed": seed, "vector": [float(v) for v in r.x],
+                 "budget_sims": budget, "simulations": r.n_simulations,
+                 "evaluations": r.n_evaluations, "score": r.score,
+                 "time_s": recorded.sim_seconds + overhead}
+        _write(run_dir / TRIAL, trial)
+    return trial
+
+
+def _evaluate(identity: dict, run_dir: Path, problem, executor, x, samples: int, seed: int,
+              progress) -> dict:
+    from rgmcad.runs.robustness import local_robustness
+
+    done = _read(run_dir / TRIAL)
+    if done is not None:
+        return done
+    with RunStore(run_dir, identity, dimension=problem.dimension,
+                  events=list(problem.scenario.events)) as store:
+        recorded = RecordedProblem(problem, store, executor, progress.simulated)
+        curve = local_robustness(np.asarray(x, dtype=float), recorded.validity,
+                                 recorded.simulate_records, samples,
+                                 np.random.default_rng([seed, _EVAL_STREAM]))
+        out = {"vector": [float(v) for v in x], "seed": seed, "samples": samples,
+               "rho_g": curve.rho_g, "rho_g_interval": [curve.rho_g_low, curve.rho_g_high],
+               "eps": curve.eps.tolist(), "rho": curve.rho.tolist(),
+               "counts": curve.counts.tolist(), "simulations": curve.simulations}
+        _write(run_dir / TRIAL, out)
+    return out
+
+
+def run_benchmark(scenario_path, out_dir, *, methods=METHODS, trials: int = 10,
+                  seed: int = 0, budget_sims: int | None = None, samples: int = 50,
+                  ours_budget: str = "default", ours_settings=None,
+                  workers: int | None = None, build_dir=None, progress=None) -> dict:
+    """Run (or continue) a benchmark and write its table and figure; returns the table
+    (what ``benchmark.json`` holds). See the module docstring."""
+    from rgmcad.errors import UsageError
+    from rgmcad.parts.store import DEFAULT_BUILD_DIR
+    from rgmcad.runs.workflow import RunProgress
+    from rgmcad.scene.loader import load_scenario
+
+    progress = progress or RunProgress()
+    build_dir = DEFAULT_BUILD_DIR if build_dir is None else build_dir
+    methods = tuple(methods)
+    bad = [m for m in methods if m not in METHODS]
+    if bad or not methods or len(set(methods)) != len(methods):
+        raise UsageError("--methods", ",".join(methods), f"expected distinct names among "
+                         f"{', '.join(METHODS)}")
+    check_range(trials, 1, 1000, "--trials", "a number of trials")
+    check_range(seed, 0, MAX_SEED - 1000, "--seed", "a base seed")
+    check_range(samples, 1, MAX_SAMPLES, "--samples", "a number of layouts per radius")
+    check_workers(workers)
+    if budget_sims is not None:
+        check_range(budget_sims, 1, 10**7, "--budget-sims", "a number of simulations")
+    elif "ours" not in methods:
+        raise UsageError("--budget-sims", "", "needed when ours is not among --methods (the "
+                         "budget is otherwise the mean number of simulations ours used)")
+    scenario = load_scenario(scenario_path)
+    digest = scenario_digest(scenario_path)
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    start = time.perf_counter()
+    seeds = [seed + i for i in range(trials)]
+    found: dict[str, list[dict]] = {}
+    if "ours" in methods:
+        for s in seeds:
+            progress.stage(f"ours t{s}")
+            found.setdefault("ours", []).append(_ours(
+                scenario_path, out, s, ours_budget, ours_settings, workers, build_dir, progress))
+    budget = budget_sims if budget_sims is not None else int(
+        np.floor(np.mean([t["budget_sims"] for t in found["ours"]])))
+    problem = ScenarioProblem(scenario_path, build_dir)
+    executor = make_executor(workers, problem.context)
+    base = {"format": 1, "scenario": scenario.name, "scenario_sha256": digest}
+    tags = {m: "ours" if m == "ours" else f"{m}-B{budget}" for m in methods}
+    evaluations: dict[str, list[dict]] = {}
+    try:
+        for m in methods:
+            if m == "ours":
+                continue
+            for s in seeds:
+                progress.stage(f"{m} t{s}")
+                found.setdefault(m, []).append(_baseline(
+                    m, {**base, "kind": "baseline", "method": m, "seed": s, "budget": budget},
+                    out / tags[m] / f"t{s}", problem, executor, budget, s, progress))
+        for m in methods:
+            for s, trial in zip(seeds, found[m], strict=True):
+                progress.stage(f"evaluate {m} t{s}")
+                identity = {**base, "kind": "evaluation", "vector": trial["vector"],
+                            "seed": s, "samples": samples}
+                evaluations.setdefault(m, []).append(_evaluate(
+                    identity, out / "eval" / tags[m] / f"t{s}", problem, executor,
+                    trial["vector"], samples, s, progress))
+    finally:
+        executor.close()
+    table = _table(scenario.name, methods, seeds, budget, samples, found, evaluations)
+    table["wall_time"] = time.perf_counter() - start
+    _write(out / TABLE_JSON, table)
+    (out / TABLE_MD).write_text(table_markdown(table))
+    plot_benchmark(table, out / PLOT)
+    return table
+
+
+def _mean_se(v) -> tuple[float, float | None]:
+    v = np.asarray(v, dtype=float)
+    se = float(v.std(ddof=1) / np.sqrt(len(v))) if len(v) > 1 else None
+    return float(v.mean()), se
+
+
+def _table(name, methods, seeds, budget, samples, found, evaluations) -> dict:
+    rows = []
+    for m in methods:
+        rho_g = [e["rho_g"] for e in evaluations[m]]
+        curves = np.array([e["rho"] for e in evaluations[m]])
+        mean, se = _mean_se(rho_g)
+        row = {"method": m, "label": LABELS[m], "trials": len(rho_g), "rho_g_mean": mean,
+               "rho_g_se": se, "rho_g": rho_g,
+               "rho_l_mean": curves.mean(axis=0).tolist(),
+               "rho_l_se": (curves.std(axis=0, ddof=1) / np.sqrt(len(curves))).tolist()
+               if len(curves) > 1 else [None] * curves.shape[1],
+               "simulations_mean": float(np.mean([t["simulations"] for t in found[m]])),
+               "budget_sims_mean": float(np.mean([t["budget_sims"] for t in found[m]])),
+               "time_s_mean": float(np.mean([t["time_s"] for t in found[m]])),
+               "vectors": [t["vector"] for t in found[m]]}
+        if "ours" in evaluations and m != "ours" and len(rho_g) > 1:
+            d = np.asarray(rho_g) - np.asarray([e["rho_g"] for e in evaluations["ours"]])
+            dm, dse = _mean_se(d)
+            from scipy.stats import ttest_rel
+
+            p = float(ttest_rel(rho_g, [e["rho_g"] for e in evaluations["ours"]]).pvalue)
+            row["paired_vs_ours"] = {"mean_difference": dm, "se": dse,
+                                     "p_value": None if np.isnan(p) else p}
+        rows.append(row)
+    eps = evaluations[methods[0]][0]["eps"]
+    return {"scenario": name, "budget_sims": budget, "seeds": seeds,
+            "samples_per_radius": samples, "eps": eps, "rows": rows}
+
+
+def table_markdown(table: dict) -> str:
+    """The table as Markdown, like the paper's Table 1."""
+    def num(v, f="{:.3f}"):
+        return "n/a" if v is None or (isinstance(v, float) and np.isnan(v)) else f.format(v)
+
+    lines = [f"# Benchmark: {table['scenario']}", "",
+             f"B = {table['budget_sims']} simulations per method run (validity tests not "
+             f"counted); {len(table['seeds'])} trial(s), seeds {table['seeds'][0]}.."
+             f"{table['seeds'][-1]}; rho_l from {table['samples_per_radius']} valid layouts "
+             "per radius, 30 radii, common random numbers across methods.", "",
+             "| method | trials | rho_g (mean +- s.e.) | paired diff. vs ours (p) | "
+             "simulations used | time (s, one core) |", "|---|---|---|---|---|---|"]
+    for r in table["rows"]:
+        pair = r.get("paired_vs_ours")
+        diff = "" if pair is None else (f"{pair['mean_difference']:+.3f} +- "
+                                        f"{num(pair['se'])} (p {num(pair['p_value'], '{:.2g}')})")
+        lines.append(f"| {r['label']} | {r['trials']} | {r['rho_g_mean']:.3f} +- "
+                     f"{num(r['rho_g_se'])} | {diff} | {r['simulations_mean']:.0f} | "
+                     f"{r['time_s_mean']:.1f} |")
+    return "\n".join(lines) + "\n"
+
+
+def plot_benchmark(table: dict, path) -> None:
+    """Mean rho_l curves with standard-error bands, one per method (like Fig. 15)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    eps = np.asarray(table["eps"])
+    fig, ax = plt.subplots(figsize=(6, 4), dpi=120)
+    for r in table["rows"]:
+        mean = np.asarray(r["rho_l_mean"])
+        se = np.nan_to_num(np.asarray(r["rho_l_se"], dtype=float))
+        (line,) = ax.plot(eps, mean, label=f"{r['label']} (rho_g {r['rho_g_mean']:.3f})")
+        ax.fill_between(eps, mean - se, mean + se, color=line.get_color(), alpha=0.2, lw=0)
+    ax.set_xlabel("eps (radius in the normalised design space)")
+    ax.set_ylabel("local robustness rho_l (mean over trials)")
+    ax.set_xlim(0, float(eps.max()))
+    ax.set_ylim(0, 1.02)
+    ax.grid(alpha=0.3)
+    ax.legend(loc="upper right", fontsize=7)
+    ax.set_title(f"{table['scenario']}: B = {table['budget_sims']}, "
+                 f"{len(table['seeds'])} trial(s)", fontsize=10)
+    fig.tight_layout()
+    fig.savefig(path)
+    plt.close(fig)

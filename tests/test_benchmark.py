@@ -1,0 +1,116 @@
+"""``rgmcad benchmark`` (rgmcad.runs.benchmark): a real benchmark process killed with SIGKILL
+resumes to the identical table; our method sets the baselines' budget; bad requests are
+refused before any simulation."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from rgmcad.cli import main
+from rgmcad.learning import LearningSettings
+from rgmcad.runs.benchmark import PLOT, TABLE_JSON, TABLE_MD, run_benchmark
+
+ROOT = Path(__file__).resolve().parent.parent
+SIMPLE = "scenarios/simple.toml"
+
+TINY = LearningSettings(  # tests/test_run_faults.py's: a whole run in seconds on one core
+    n_initial=40, n_successes=8, exploration_max_iter=8, active_batch=5, active_max_iter=1,
+    svm_C_grid=(1.0, 10.0, 100.0), svm_gamma_grid=(1.0, 10.0), svm_class_weights=(None,),
+    mi_null_permutations=2, placement_samples=4, optimizer_max_eval=40,
+)
+
+
+def _command(out: Path) -> list[str]:
+    return [sys.executable, "-m", "rgmcad.cli", "benchmark", SIMPLE, "--out", str(out),
+            "--methods", "b1,b2,b3,cma", "--trials", "2", "--budget-sims", "20",
+            "--samples", "2", "--workers", "1", "--json"]
+
+
+def _without_times(table: dict) -> dict:
+    """The table less what a clock measured."""
+    out = {k: v for k, v in table.items() if k != "wall_time"}
+    out["rows"] = [{k: v for k, v in r.items() if k != "time_s_mean"} for r in table["rows"]]
+    return out
+
+
+def _lines(path: Path) -> int:
+    try:
+        return path.read_bytes().count(b"\n")
+    except OSError:
+        return 0
+
+
+def test_a_killed_benchmark_resumes_to_the_identical_table(tmp_path):
+    reference = subprocess.run(_command(tmp_path / "whole"), cwd=ROOT, capture_output=True,
+                               text=True, timeout=300)
+    assert reference.returncode == 0, reference.stderr[-2000:]
+    expected = json.loads(reference.stdout)
+    out = tmp_path / "killed"
+    journal = out / "b3-B20" / "t1" / "simulations.jsonl"  # the GP's second trial, mid-score
+    killed = subprocess.Popen(_command(out), cwd=ROOT, stdout=subprocess.DEVNULL,
+                              stderr=subprocess.DEVNULL)
+    try:
+        deadline = time.monotonic() + 120
+        while _lines(journal) < 3:
+            assert killed.poll() is None and time.monotonic() < deadline, "never got there"
+            time.sleep(0.02)
+        os.kill(killed.pid, signal.SIGKILL)
+        killed.wait()
+    finally:
+        if killed.poll() is None:
+            killed.kill()
+            killed.wait()
+    assert not (out / TABLE_JSON).exists() and not (out / "b3-B20" / "t1" / "trial.json").exists()
+    resumed = subprocess.run(_command(out), cwd=ROOT, capture_output=True, text=True,
+                             timeout=300)
+    assert resumed.returncode == 0, resumed.stderr[-2000:]
+    table = json.loads(resumed.stdout)
+    assert _without_times(table) == _without_times(expected)
+    assert table == json.loads((out / TABLE_JSON).read_text())
+    assert (out / TABLE_MD).read_text().count("\n|---") == 1 and (out / PLOT).stat().st_size > 0
+    rows = {r["method"]: r for r in table["rows"]}
+    assert set(rows) == {"b1", "b2", "b3", "cma"}
+    assert all(r["trials"] == 2 and 0 <= r["rho_g_mean"] <= 1 for r in rows.values())
+    assert all(r["simulations_mean"] == 20 for m, r in rows.items() if m != "b1")
+    assert rows["b1"]["simulations_mean"] <= 20
+
+
+def test_ours_sets_the_budget_and_every_baseline_is_paired_with_it(tmp_path):
+    table = run_benchmark(SIMPLE, tmp_path, methods=("ours", "b1", "b2"), trials=2,
+                          samples=1, ours_budget="small", ours_settings=TINY, workers=1)
+    ours, b1, b2 = table["rows"]
+    assert ours["method"] == "ours" and ours["budget_sims_mean"] >= table["budget_sims"]
+    assert table["budget_sims"] == int(ours["budget_sims_mean"])  # the floor of the mean
+    assert b2["simulations_mean"] <= table["budget_sims"]
+    for row in (b1, b2):
+        pair = row["paired_vs_ours"]
+        diffs = [a - b for a, b in zip(row["rho_g"], ours["rho_g"], strict=True)]
+        assert pair["mean_difference"] == pytest.approx(sum(diffs) / 2)
+    again = run_benchmark(SIMPLE, tmp_path, methods=("ours", "b1", "b2"), trials=2,
+                          samples=1, ours_budget="small", ours_settings=TINY, workers=1)
+    assert _without_times(again) == _without_times(table)
+
+
+@pytest.mark.parametrize("argv, word", [
+    (["benchmark", "simple", "--methods", "b1"], "--budget-sims"),
+    (["benchmark", "simple", "--methods", "b1,b9"], "--methods"),
+    (["benchmark", "simple", "--methods", "b1,b1"], "--methods"),
+    (["benchmark", "simple", "--trials", "0"], "--trials"),
+    (["benchmark", "simple", "--samples", "0", "--methods", "b1", "--budget-sims", "5"],
+     "--samples"),
+    (["benchmark", "simple", "--budget-sims", "0"], "--budget-sims"),
+])
+def test_bad_requests_are_one_line_before_any_simulation(argv, word, tmp_path, capfd):
+    assert main(["--build-dir", str(ROOT / "build" / "parts"), *argv,
+                 "--out", str(tmp_path / "b")]) == 2
+    err = capfd.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and word in err[0], err
+    assert not (tmp_path / "b").exists() or not any((tmp_path / "b").iterdir())
