@@ -25,6 +25,13 @@ def add_layout_args(p: argparse.ArgumentParser, vector: bool = True) -> None:
         group.add_argument("--vector", help="a design vector v1,...,vd in [0, 1]")
 
 
+def add_scheduler_args(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--scheduler", metavar="ADDRESS", default=None,
+                   help="run the simulations on a Dask cluster: a scheduler's address "
+                   "(tcp://host:8786) or local:N (N worker processes here); default: "
+                   "$RGMCAD_SCHEDULER, else --workers processes; results do not depend on it")
+
+
 def parts_dir_arg(args) -> Path | None:
     """The folder of ``--parts DIR`` (None: the shipped part families)."""
     from rgmcad.errors import UsageError

@@ -8,7 +8,7 @@ import json
 import sys
 from pathlib import Path
 
-from rgmcad.cli.common import add_scenario_arg, parts_dir_arg, say
+from rgmcad.cli.common import add_scenario_arg, add_scheduler_args, parts_dir_arg, say
 
 __all__ = ["configure", "run"]
 
@@ -23,6 +23,7 @@ def configure(p: argparse.ArgumentParser) -> None:
                    "(default 0)")
     p.add_argument("--workers", type=int, default=None, help="simulation processes, 1 to 4 per "
                    "CPU (default: every CPU); results do not depend on it")
+    add_scheduler_args(p)
     p.add_argument("--out", metavar="FILE.png", help="the plot (default: next to a layout file, "
                    "or robustness-SCENARIO-LAYOUT.png here)")
     p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
@@ -71,7 +72,7 @@ def run(args) -> int:
         result = evaluate_layout(args.scenario, args.layout, samples=args.samples,
                                  seed=args.seed, workers=args.workers,
                                  build_dir=args.build_dir, plot=args.out, progress=bar,
-                                 parts_dir=parts_dir_arg(args))
+                                 parts_dir=parts_dir_arg(args), scheduler=args.scheduler)
     finally:
         bar.close()
     if args.json:

@@ -9,7 +9,7 @@ import json
 import sys
 from pathlib import Path
 
-from rgmcad.cli.common import add_scenario_arg, parts_dir_arg, say
+from rgmcad.cli.common import add_scenario_arg, add_scheduler_args, parts_dir_arg, say
 
 __all__ = ["configure", "run"]
 
@@ -36,6 +36,9 @@ def configure(p: argparse.ArgumentParser) -> None:
                    "not depend on it")
     p.add_argument("--budget", type=_budget_name, default="default", metavar="{default,small}",
                    help="default: the paper's Table 1 settings; small: a quick look")
+    p.add_argument("--batch", type=int, metavar="N", help="simulations per exploration batch, "
+                   "1 to 10000 (default 10); more keeps more workers busy")
+    add_scheduler_args(p)
     p.add_argument("--json", action="store_true", help="print one JSON summary on stdout")
 
 
@@ -93,7 +96,8 @@ def run(args) -> int:
         done = optimize_scenario(args.scenario, seed=args.seed, budget=args.budget,
                                  run_dir=args.run_dir, workers=args.workers,
                                  build_dir=args.build_dir, progress=bar,
-                                 parts_dir=parts_dir_arg(args))
+                                 parts_dir=parts_dir_arg(args), scheduler=args.scheduler,
+                                 batch=args.batch)
     finally:
         bar.close()
     if done.finished_before:
@@ -123,6 +127,4 @@ def show(summary: dict, as_json: bool, wall_time: float | None = None) -> None:
         k = 1.0 if unit == "deg" else 1000.0
         say(f"  {name:24s} {summary['values'][name] * k:9.2f} {unit:3s}  "
             f"-{down * k:.2f} / +{up * k:.2f}")
-    from rgmcad.runs.report import REPORT_FILE
-
-    say(f"report: {Path(summary['run']) / REPORT_FILE}")
+    say(f"report: {Path(summary['run']) / 'report.md'}")

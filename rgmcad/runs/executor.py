@@ -20,8 +20,9 @@ parent changes. They also drop the descriptors the parent marked with :func:`par
 open. So a killed ``rgmcad optimize`` leaves nothing running behind it
 (docs/decisions.md, "2026-12-01 — Run directory lock and pool workers").
 
-Adding a backend (a Dask cluster, say) is writing one more class with ``workers``,
-``map`` and ``close``.
+A Dask cluster is one more such class (:class:`rgmcad.runs.dask_executor.DaskExecutor`,
+``make_executor(..., scheduler=ADDRESS)``): its workers build their context from a payload
+sent by the client instead of an initializer run there.
 """
 
 from __future__ import annotations
@@ -39,7 +40,14 @@ from functools import partial
 from typing import Any, Protocol
 
 __all__ = ["Executor", "SerialExecutor", "PoolExecutor", "make_executor", "default_workers",
-           "max_workers", "map_blocks", "parent_only"]
+           "max_workers", "map_blocks", "parent_only", "scheduler_from_env", "SCHEDULER_ENV"]
+
+SCHEDULER_ENV = "RGMCAD_SCHEDULER"
+
+
+def scheduler_from_env(scheduler: str | None) -> str | None:
+    """``scheduler``, else the environment's ``RGMCAD_SCHEDULER``, else None (no Dask)."""
+    return scheduler or os.environ.get(SCHEDULER_ENV) or None
 
 
 class Executor(Protocol):
@@ -257,8 +265,16 @@ def map_blocks(executor, fn: Callable[[Any, Any], Any], X) -> Any:
 
 
 def make_executor(workers: int | None, initializer: Callable | None = None,
-                  initargs: Sequence = ()) -> SerialExecutor | PoolExecutor:
-    """A serial executor for one worker, a process pool otherwise (None: every CPU)."""
+                  initargs: Sequence = (), scheduler: str | None = None,
+                  payload: Callable | None = None):
+    """A serial executor for one worker, a process pool otherwise (None: every CPU); with
+    ``scheduler`` (an address or ``local:N``), a Dask executor whose workers build their
+    context from ``payload()`` (a :class:`~rgmcad.runs.problem.ContextPayload`), ``workers``
+    then unused."""
+    if scheduler:
+        from rgmcad.runs.dask_executor import DaskExecutor
+
+        return DaskExecutor(scheduler, payload() if payload is not None else None)
     n = default_workers() if workers is None else int(workers)
     if n <= 1:
         return SerialExecutor(initializer, initargs)

@@ -28,7 +28,8 @@ import numpy as np
 from rgmcad.parts.store import DEFAULT_BUILD_DIR
 from rgmcad.sim.run import Outcome
 
-__all__ = ["SimRecord", "ScenarioContext", "ScenarioProblem", "simulate_task", "validity_task",
+__all__ = ["SimRecord", "ScenarioContext", "ScenarioProblem", "ContextPayload", "simulate_task",
+           "validity_task",
            "scenario_digest", "event_parents", "any_joins"]
 
 
@@ -196,6 +197,56 @@ class ScenarioContext:
         self.cache.close()
 
 
+@dataclass(frozen=True, eq=False)
+class ContextPayload:
+    """What a machine without the client's files needs to build a :class:`ScenarioContext`:
+    the scenario's text and file name, the text of each part family file of ``--parts`` and
+    the built parts (pickled). ``digest`` (SHA-256 of all of it) names it; a Dask worker
+    builds one context per digest (:mod:`rgmcad.runs.dask_executor`)."""
+
+    scenario_name: str
+    scenario_text: str
+    families: tuple[tuple[str, str], ...]
+    parts: bytes
+    digest: str
+
+    @classmethod
+    def of(cls, problem: ScenarioProblem) -> ContextPayload:
+        import pickle
+
+        text = Path(problem.scenario_path).read_text(encoding="utf-8")
+        families = () if problem.parts_dir is None else tuple(
+            (f.name, f.read_text(encoding="utf-8"))
+            for f in sorted(Path(problem.parts_dir).glob("*.py")))
+        parts = pickle.dumps(dict(problem.parts), protocol=pickle.HIGHEST_PROTOCOL)
+        h = hashlib.sha256(text.encode())
+        for name, source in families:
+            h.update(b"\0" + name.encode() + b"\0" + source.encode())
+        h.update(b"\0" + hashlib.sha256(parts).digest())
+        return cls(Path(problem.scenario_path).name, text, families, parts, h.hexdigest())
+
+    def context(self) -> ScenarioContext:
+        """The context, built here from this payload alone (the part families in a
+        temporary folder, gone once loaded)."""
+        import pickle
+        import tempfile
+        import tomllib
+
+        from rgmcad.scene.loader import parse_scenario
+
+        data = tomllib.loads(self.scenario_text)
+        if not self.families:
+            scenario = parse_scenario(data, where=self.scenario_name,
+                                      path=Path(self.scenario_name))
+        else:
+            with tempfile.TemporaryDirectory(prefix="rgmcad-parts-") as folder:
+                for name, source in self.families:
+                    (Path(folder) / name).write_text(source, encoding="utf-8")
+                scenario = parse_scenario(data, where=self.scenario_name,
+                                          path=Path(self.scenario_name), parts_dir=Path(folder))
+        return ScenarioContext(scenario, pickle.loads(self.parts))  # noqa: S301 - our client
+
+
 def simulate_task(context: ScenarioContext, x: np.ndarray) -> SimRecord:
     """``context.simulate_one(x)``: a task for :meth:`~rgmcad.runs.executor.Executor.map_context`."""
     return context.simulate_one(x)
@@ -265,6 +316,10 @@ class ScenarioProblem:
                                ScenarioContext.load(self.scenario_path, self.build_dir,
                                                     self.parts_dir))
         return self._context
+
+    def payload(self) -> ContextPayload:
+        """This problem's context as data for machines without its files."""
+        return ContextPayload.of(self)
 
     @property
     def scenario(self):

@@ -33,7 +33,7 @@ from rgmcad.runs.checks import (
     check_range,
     check_workers,
 )
-from rgmcad.runs.executor import make_executor, map_blocks
+from rgmcad.runs.executor import make_executor, map_blocks, scheduler_from_env
 from rgmcad.runs.problem import (
     ScenarioProblem,
     SimRecord,
@@ -105,9 +105,11 @@ class OptimizationRun:
         return bool(self.summary["verified"])
 
 
-def default_run_dir(scenario_name: str, budget: str, seed: int) -> Path:
-    """``runs/SCENARIO-sSEED``, or ``runs/SCENARIO-BUDGET-sSEED`` for another budget."""
+def default_run_dir(scenario_name: str, budget: str, seed: int, batch: int | None = None) -> Path:
+    """``runs/SCENARIO-sSEED``, or ``runs/SCENARIO-BUDGET-sSEED`` for another budget, with
+    ``-bN`` before ``-sSEED`` for an exploration batch of N set by ``--batch``."""
     tag = "" if budget == "default" else f"-{budget}"
+    tag += "" if batch is None else f"-b{batch}"
     return Path("runs") / f"{scenario_name}{tag}-s{seed}"
 
 
@@ -116,7 +118,8 @@ def optimize_scenario(
     run_dir: str | Path | None = None, workers: int | None = None,
     build_dir: str | Path = DEFAULT_BUILD_DIR, progress: RunProgress | None = None,
     recorded: Callable[..., RecordedProblem] = RecordedProblem,
-    parts_dir: str | Path | None = None,
+    parts_dir: str | Path | None = None, scheduler: str | None = None,
+    batch: int | None = None,
 ) -> OptimizationRun:
     """Optimise a scenario's layout in a run directory, or continue an interrupted run there.
 
@@ -137,6 +140,11 @@ def optimize_scenario(
         say).
     parts_dir : a folder of the user's part families (``--parts``; None: the shipped ones).
         Their digests join the run's identity.
+    scheduler : a Dask scheduler's address or ``local:N`` (:mod:`rgmcad.runs.dask_executor`;
+        None: ``RGMCAD_SCHEDULER`` if set, else ``workers`` local processes); results do not
+        depend on it.
+    batch : the exploration's batch size (``LearningSettings.exploration_batch``, 1..10 000)
+        instead of the settings'; part of the run's identity and default directory.
     """
     start = time.perf_counter()
     from rgmcad.learning.settings import budget as budget_settings
@@ -147,10 +155,13 @@ def optimize_scenario(
     check_workers(workers, "workers")
     scenario = load_scenario(scenario_path, parts_dir=parts_dir)
     settings = budget_settings(budget) if settings is None else settings
+    if batch is not None:
+        check_range(batch, 1, 10_000, "batch", "a number of simulations per batch")
+        settings = settings.replace(exploration_batch=int(batch))
     parts = None if parts_dir is None else {
         name: family_digest(family) for name, family in scenario.families.items()}
     identity = run_identity(scenario.name, scenario_digest(scenario_path), seed, settings, parts)
-    run_dir = Path(run_dir) if run_dir else default_run_dir(scenario.name, budget, seed)
+    run_dir = Path(run_dir) if run_dir else default_run_dir(scenario.name, budget, seed, batch)
     with RunStore(run_dir, identity, dimension=len(scenario.free),
                   events=list(scenario.events)) as store:
         summary = store.read_result()  # None unless finished, with its model intact
@@ -160,7 +171,8 @@ def optimize_scenario(
         from rgmcad.learning.parallel import jobs_on
 
         problem = ScenarioProblem(scenario_path, build_dir, parts_dir)
-        executor = make_executor(workers, problem.context)
+        executor = make_executor(workers, problem.context, scheduler=scheduler_from_env(scheduler),
+                                 payload=problem.payload)
         try:
             learner_problem = recorded(problem, store, executor, progress.simulated)
             # The pool is idle while the models train: their grid searches, calibration folds
@@ -340,7 +352,7 @@ def evaluate_layout(
     scenario_path: str | Path, layout: str, *, samples: int = 50, seed: int = 0,
     workers: int | None = None, build_dir: str | Path = DEFAULT_BUILD_DIR,
     plot: str | Path | None = None, progress: RunProgress | None = None,
-    parts_dir: str | Path | None = None,
+    parts_dir: str | Path | None = None, scheduler: str | None = None,
 ) -> dict:
     """Local robustness of a layout at every radius and its global robustness rho_g
     (:func:`~rgmcad.runs.robustness.local_robustness`), and their plot.
@@ -353,6 +365,8 @@ def evaluate_layout(
         default: beside a layout file, else
         ``robustness-SCENARIO-LAYOUT.png`` in the working directory.
     parts_dir : a folder of the user's part families (``--parts``; None: the shipped ones).
+    scheduler : a Dask scheduler's address or ``local:N`` (None: ``RGMCAD_SCHEDULER`` if set,
+        else local processes).
 
     Returns
     -------
@@ -377,7 +391,8 @@ def evaluate_layout(
     check_plot_file(plot, "plot")  # before the simulations, not after
     start = time.perf_counter()
     problem = ScenarioProblem(scenario_path, build_dir, parts_dir)
-    executor = make_executor(workers, problem.context)
+    executor = make_executor(workers, problem.context, scheduler=scheduler_from_env(scheduler),
+                             payload=problem.payload)
     progress.stage("validity")
 
     def validity(X):

@@ -1,0 +1,256 @@
+"""Simulations on a Dask cluster (``--scheduler ADDRESS``, ``RGMCAD_SCHEDULER``, ``local:N``).
+
+:class:`DaskExecutor` speaks the executor protocol of :mod:`rgmcad.runs.executor`
+(``workers``, ``map``, ``map_context``, ``close``). Items go out in batches (several per
+task: a Dask task costs 2-3 ms of scheduling) and come back in the order of the items, so a
+seed gives the identical result here, on a process pool or serially.
+
+What the workers need travels from the client: a :class:`~rgmcad.runs.problem.ContextPayload`
+(the scenario's text, the part family files of ``--parts`` and the built parts, pickled; a
+few hundred kB) is registered as a worker plugin under its SHA-256, so every worker, one
+that joins later included, holds it; a task names the digest and the worker builds its
+:class:`~rgmcad.runs.problem.ScenarioContext` from the payload once per thread (no shared
+file system, nothing but rgmcad installed).
+
+Every worker must run this rgmcad (its version and a digest of its code,
+:func:`fingerprint`): the workers present are checked when the executor connects, and each
+task checks again where it runs (a worker may join later); another version is refused with
+one line (:class:`~rgmcad.errors.RgmcadError`). A worker that dies mid-run loses nothing: the
+scheduler runs its tasks elsewhere. A scheduler that disappears stops the run with one line;
+every finished simulation is in the run directory (on the client), so the same command
+resumes once a scheduler is back.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import threading
+from collections.abc import Callable, Sequence
+from functools import lru_cache
+from pathlib import Path
+
+from distributed import WorkerPlugin
+
+from rgmcad.errors import RgmcadError
+
+__all__ = ["DaskExecutor", "fingerprint"]
+
+@lru_cache(maxsize=1)
+def _code_digest() -> str:
+    root = Path(__file__).resolve().parent.parent
+    h = hashlib.sha256()
+    for f in sorted(root.rglob("*.py")):
+        h.update(str(f.relative_to(root)).encode() + b"\0" + f.read_bytes() + b"\0")
+    return h.hexdigest()[:12]
+
+
+def fingerprint() -> str:
+    """This process's rgmcad: ``VERSION+CODE`` (version string, SHA-256 of its sources)."""
+    import rgmcad
+
+    return f"{rgmcad.__version__}+{_code_digest()}"
+
+
+class VersionRefused(RuntimeError):
+    """Raised on a worker whose rgmcad is not the client's."""
+
+
+class _PayloadPlugin(WorkerPlugin):
+    """A Dask worker plugin that only holds a context payload on every worker."""
+
+    def __init__(self, payload):
+        self.payload = payload
+
+    def setup(self, worker):  # the payload is what a worker keeps; nothing to start
+        pass
+
+
+_LOCAL = threading.local()
+
+
+def _context(name: str, expected: str):
+    """This worker thread's context for the payload registered as ``name``."""
+    mine = fingerprint()
+    if mine != expected:
+        raise VersionRefused(f"rgmcad {mine}, client {expected}")
+    contexts = getattr(_LOCAL, "contexts", None)
+    if contexts is None:
+        contexts = _LOCAL.contexts = {}
+    if name not in contexts:
+        from distributed import get_worker
+
+        contexts[name] = get_worker().plugins[name].payload.context()
+    return contexts[name]
+
+
+def _apply_batch(expected: str, fn: Callable, batch: Sequence) -> list:
+    if fingerprint() != expected:
+        raise VersionRefused(f"rgmcad {fingerprint()}, client {expected}")
+    return [fn(item) for item in batch]
+
+
+def _apply_context_batch(name: str, expected: str, fn: Callable, batch: Sequence) -> list:
+    context = _context(name, expected)
+    return [fn(context, item) for item in batch]
+
+
+class DaskExecutor:
+    """Runs tasks on a Dask cluster.
+
+    Parameters
+    ----------
+    scheduler : str
+        A scheduler's address (``tcp://host:8786``) or ``local:N``: a
+        :class:`~distributed.LocalCluster` of N worker processes (one thread each), started
+        here and closed with the executor.
+    payload : ContextPayload, optional
+        What builds each worker's context (see the module docstring); needed by
+        :meth:`map_context`.
+    max_batch : int, default 8
+        Most items per task (tasks of ``ceil(n / (8 workers))`` items, as the process pool).
+    """
+
+    def __init__(self, scheduler: str, payload=None, max_batch: int = 8,
+                 connect_timeout: float = 20.0):
+        import logging
+
+        from distributed import Client, LocalCluster
+
+        # this process speaks for the cluster in one line (RgmcadError); distributed's own
+        # complaints (reconnecting, lost workers, recomputed tasks) go to the scheduler's log
+        logging.getLogger("distributed.client").setLevel(logging.CRITICAL)
+        self.address = scheduler
+        self.max_batch = max_batch
+        self.expected = fingerprint()
+        self._cluster = None
+        try:
+            if scheduler.startswith("local:"):
+                n = _local_workers(scheduler)
+                logging.getLogger("distributed").setLevel(logging.ERROR)
+                self._cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
+                                             scheduler_kwargs={"dashboard": False})
+                self.client = Client(self._cluster, set_as_default=False)
+            else:
+                self.client = Client(scheduler, timeout=connect_timeout, set_as_default=False)
+        except (OSError, TimeoutError) as exc:
+            self.close()
+            raise RgmcadError(scheduler, "", "no Dask scheduler answers there "
+                              f"({type(exc).__name__}); start one or check --scheduler") from None
+        try:
+            self._check_versions()
+            self.name = None
+            if payload is not None:
+                self.name = f"rgmcad-{payload.digest[:16]}"
+                self.client.register_plugin(_PayloadPlugin(payload), name=self.name)
+        except BaseException:
+            self.close()
+            raise
+
+    @property
+    def workers(self) -> int:
+        try:
+            info = self.client.scheduler_info()["workers"]
+            return max(1, sum(w.get("nthreads", 1) for w in info.values()))
+        except Exception:  # noqa: BLE001 - gone: the next task says so
+            return 1
+
+    def _check_versions(self) -> None:
+        versions = self.client.run(fingerprint)
+        for worker, version in sorted(versions.items()):
+            if version != self.expected:
+                raise _refusal(self.address, worker, version, self.expected)
+
+    def map(self, fn, items):
+        return self._submit(_apply_batch, (self.expected, fn), items)
+
+    def map_context(self, fn, items):
+        if self.name is None:
+            raise ValueError("DaskExecutor.map_context needs a payload")
+        return self._submit(_apply_context_batch, (self.name, self.expected, fn), items)
+
+    def _submit(self, apply: Callable, args: tuple, items):
+        items = list(items)
+        size = max(1, min(self.max_batch, -(-len(items) // (8 * self.workers))))
+        try:
+            futures = [self.client.submit(apply, *args, items[i:i + size], pure=False)
+                       for i in range(0, len(items), size)]
+        except Exception as exc:  # noqa: BLE001
+            raise _lost(self.address, exc) from None
+        return self._results(futures)
+
+    def _results(self, futures):
+        from distributed import KilledWorker
+
+        try:
+            for f in futures:
+                try:
+                    batch = f.result()
+                except VersionRefused as exc:
+                    raise RgmcadError(self.address, "", f"a worker runs another {exc}; "
+                                      "install the client's rgmcad on every worker") from None
+                except KilledWorker as exc:
+                    raise RgmcadError(self.address, "", f"tasks killed their workers again and "
+                                      f"again ({exc}); see the workers' logs") from None
+                except RgmcadError:
+                    raise
+                except Exception as exc:
+                    if _is_connection_loss(exc, self.client):
+                        raise _lost(self.address, exc) from None
+                    raise
+                yield from batch
+        finally:
+            for f in futures:
+                if not f.done():
+                    f.cancel()
+
+    def close(self) -> None:
+        client, self.client = getattr(self, "client", None), None
+        if client is not None:
+            try:
+                client.close(timeout=5)
+            except Exception:  # noqa: BLE001, S110 - a scheduler already gone
+                pass
+        if self._cluster is not None:
+            try:
+                self._cluster.close(timeout=10)
+            except Exception:  # noqa: BLE001, S110
+                pass
+            self._cluster = None
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+
+
+def _local_workers(scheduler: str) -> int:
+    from rgmcad.runs.executor import max_workers
+
+    try:
+        n = int(scheduler.split(":", 1)[1])
+    except ValueError:
+        n = 0
+    if not 1 <= n <= max_workers():
+        raise RgmcadError(scheduler, "", f"local:N needs N from 1 to {max_workers()}")
+    return n
+
+
+def _refusal(address: str, worker: str, version: str, expected: str) -> RgmcadError:
+    return RgmcadError(address, "", f"worker {worker} runs rgmcad {version}, this client "
+                       f"{expected}: refused; install the client's rgmcad on every worker")
+
+
+def _is_connection_loss(exc: BaseException, client) -> bool:
+    from concurrent.futures import CancelledError
+
+    from distributed.comm.core import CommClosedError
+
+    return (isinstance(exc, (CancelledError, CommClosedError, OSError, TimeoutError))
+            or client.status not in ("running", "connecting"))
+
+
+def _lost(address: str, exc: BaseException) -> RgmcadError:
+    return RgmcadError(address, "", f"the Dask scheduler went away ({type(exc).__name__}); "
+                       "the simulations done are in the run directory: run the same command "
+                       "again once a scheduler is back")

@@ -1,0 +1,149 @@
+"""Simulations on a Dask cluster (:mod:`rgmcad.runs.dask_executor`): a ``LocalCluster`` of two
+worker processes gives the serial executor's result, loses nothing when a worker is killed
+with SIGKILL mid-run, refuses workers of another rgmcad version in one line, and a scheduler
+that disappears stops the run in one line; the same command then resumes."""
+
+from __future__ import annotations
+
+import contextlib
+import io
+import json
+import os
+import signal
+import socket
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from rgmcad.cli import main
+from rgmcad.runs.workflow import RunProgress
+
+distributed = pytest.importorskip("distributed")
+
+ROOT = Path(__file__).resolve().parent.parent
+SIMPLE = "scenarios/simple.toml"
+SAME = ("vector", "probability", "event_probabilities", "simulations", "simulations_by_stage",
+        "successes", "tolerances", "optimum", "verification", "factors", "influence")
+# not model_sha256: the pickled model's bytes differ between serial and process pool too
+# (estimators fitted in other processes pickle differently; their predictions are identical)
+
+
+def _cli(argv) -> tuple[int, str, str]:
+    out, err = io.StringIO(), io.StringIO()
+    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+        code = main(argv)
+    return code, out.getvalue(), err.getvalue()
+
+
+def _optimize(run: Path, *extra) -> dict:
+    code, out, err = _cli(["optimize", SIMPLE, "--budget", "small", "--seed", "3", "--run",
+                           str(run), "--json", *extra])
+    assert code in (0, 1), err
+    return json.loads(out)
+
+
+@pytest.fixture(scope="module")
+def cluster():
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
+                                  scheduler_kwargs={"dashboard": False}) as c:
+        yield c
+
+
+@pytest.fixture(scope="module")
+def serial(tmp_path_factory):
+    return _optimize(tmp_path_factory.mktemp("serial") / "run", "--workers", "1")
+
+
+def test_dask_gives_the_serial_result(serial, cluster, tmp_path):
+    got = _optimize(tmp_path / "run", "--scheduler", cluster.scheduler_address)
+    assert {k: got[k] for k in SAME} == {k: serial[k] for k in SAME}
+    assert got["replayed"] == 0
+
+
+class _KillAt(RunProgress):
+    """Kills one worker process (SIGKILL) when the ``at``-th simulation comes back."""
+
+    def __init__(self, pid: int, at: int):
+        self.pid, self.at, self.n, self.killed = pid, at, 0, False
+
+    def simulated(self, record, replayed: bool = False) -> None:
+        self.n += 1
+        if self.n == self.at:
+            os.kill(self.pid, signal.SIGKILL)
+            self.killed = True
+
+
+def test_a_worker_killed_mid_run_loses_nothing(serial, cluster, tmp_path):
+    from rgmcad.runs.workflow import optimize_scenario
+
+    with distributed.Client(cluster.scheduler_address, set_as_default=False) as client:
+        pids = client.run(os.getpid)
+    progress = _KillAt(sorted(pids.values())[0], at=60)
+    done = optimize_scenario(SIMPLE, seed=3, budget="small", run_dir=tmp_path / "run",
+                             scheduler=cluster.scheduler_address, progress=progress)
+    assert progress.killed
+    assert {k: done.summary[k] for k in SAME} == {k: serial[k] for k in SAME}
+    with distributed.Client(cluster.scheduler_address, set_as_default=False) as client:
+        client.wait_for_workers(2, timeout=30)  # the nanny restarted it, for the next tests
+
+
+def _set_version(version: str) -> None:
+    import rgmcad
+
+    rgmcad.__version__ = version
+
+
+def test_a_worker_of_another_version_is_refused_in_one_line(cluster, tmp_path):
+    import rgmcad
+
+    with distributed.Client(cluster.scheduler_address, set_as_default=False) as client:
+        worker = sorted(client.scheduler_info()["workers"])[0]
+        client.run(_set_version, "0.0.9-other", workers=[worker])
+        try:
+            code, out, err = _cli(["evaluate", SIMPLE, "--layout", "initial", "--samples", "1",
+                                   "--scheduler", cluster.scheduler_address,
+                                   "--out", str(tmp_path / "p.png")])
+        finally:
+            client.run(_set_version, rgmcad.__version__, workers=[worker])
+    assert code == 2 and out == ""
+    assert err.count("\n") == 1 and "refused" in err and "0.0.9-other" in err, err
+    assert not (tmp_path / "p.png").exists()
+
+
+def _free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+@pytest.mark.slow
+def test_a_scheduler_that_disappears_stops_the_run_in_one_line_and_it_resumes(serial, tmp_path):
+    port = _free_port()
+    address = f"tcp://127.0.0.1:{port}"
+    run = tmp_path / "run"
+    command = [sys.executable, "-m", "rgmcad.cli", "optimize", SIMPLE, "--budget", "small",
+               "--seed", "3", "--run", str(run), "--json", "--scheduler", address]
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, host="127.0.0.1",
+                                  scheduler_port=port, scheduler_kwargs={"dashboard": False}):
+        proc = subprocess.Popen(command, cwd=ROOT, stdout=subprocess.PIPE,
+                                stderr=subprocess.PIPE, text=True)
+        deadline = time.monotonic() + 60
+        journal = run / "simulations.jsonl"
+        while time.monotonic() < deadline and (not journal.exists()
+                                               or journal.read_text().count("\n") < 40):
+            time.sleep(0.1)
+    out, err = proc.communicate(timeout=120)
+    assert proc.returncode == 2, err
+    assert err.count("rgmcad: error") == 1, err
+    lines = [ln for ln in err.splitlines() if "scheduler" in ln]
+    assert lines and "run the same command again" in lines[-1], err
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, host="127.0.0.1",
+                                  scheduler_port=port, scheduler_kwargs={"dashboard": False}):
+        again = subprocess.run(command, cwd=ROOT, capture_output=True, text=True, timeout=300)
+    assert again.returncode in (0, 1), again.stderr
+    got = json.loads(again.stdout)
+    assert got["replayed"] >= 40
+    assert {k: got[k] for k in SAME} == {k: serial[k] for k in SAME}
