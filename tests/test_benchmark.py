@@ -84,9 +84,12 @@ def test_a_killed_benchmark_resumes_to_the_identical_table(tmp_path):
 
 
 def test_ours_sets_the_budget_and_every_baseline_is_paired_with_it(tmp_path):
-    table = run_benchmark(SIMPLE, tmp_path, methods=("ours", "b1", "b2"), trials=2,
+    table = run_benchmark(SIMPLE, tmp_path, methods=("ours", "full", "b1", "b2"), trials=2,
                           samples=1, ours_budget="small", ours_settings=TINY, workers=1)
-    ours, b1, b2 = table["rows"]
+    ours, full, b1, b2 = table["rows"]
+    assert json.loads((tmp_path / "full" / "t0" / "settings.json").read_text())[
+        "settings"]["factorized"] is False  # Fig. 16's variant: one global model
+    assert full["budget_sims_mean"] > 0 and "paired_vs_ours" in full
     assert ours["method"] == "ours" and ours["budget_sims_mean"] >= table["budget_sims"]
     assert table["budget_sims"] == int(ours["budget_sims_mean"])  # the floor of the mean
     assert b2["simulations_mean"] <= table["budget_sims"]
@@ -94,7 +97,7 @@ def test_ours_sets_the_budget_and_every_baseline_is_paired_with_it(tmp_path):
         pair = row["paired_vs_ours"]
         diffs = [a - b for a, b in zip(row["rho_g"], ours["rho_g"], strict=True)]
         assert pair["mean_difference"] == pytest.approx(sum(diffs) / 2)
-    again = run_benchmark(SIMPLE, tmp_path, methods=("ours", "b1", "b2"), trials=2,
+    again = run_benchmark(SIMPLE, tmp_path, methods=("ours", "full", "b1", "b2"), trials=2,
                           samples=1, ours_budget="small", ours_settings=TINY, workers=1)
     assert _without_times(again) == _without_times(table)
 

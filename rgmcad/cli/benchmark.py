@@ -41,7 +41,8 @@ def configure(p: argparse.ArgumentParser) -> None:
                    "(default: benchmarks/SCENARIO); the same command on the same DIR continues "
                    "an interrupted benchmark")
     p.add_argument("--methods", type=_methods, default=None, metavar="M1,M2",
-                   help="among ours,b1,b2,b3,cma (default: all)")
+                   help="among ours,full,b1,b2,b3,cma (default: ours,b1,b2,b3,cma; full: "
+                   "ours with one global model, the paper's Fig. 16)")
     p.add_argument("--trials", type=int, default=10, help="runs of each method, seeds SEED.."
                    "SEED+T-1 (default 10, as the paper)")
     p.add_argument("--seed", type=int, default=0, help="base seed (default 0)")
@@ -73,7 +74,7 @@ class _Stages:
 
 def run(args) -> int:
     from rgmcad.cli.paths import output_dir
-    from rgmcad.runs.benchmark import METHODS, TABLE_MD, run_benchmark
+    from rgmcad.runs.benchmark import DEFAULT_METHODS, TABLE_MD, run_benchmark
     from rgmcad.runs.checks import check_workers
     from rgmcad.scene.loader import load_scenario
 
@@ -81,7 +82,7 @@ def run(args) -> int:
     scenario = load_scenario(args.scenario)  # a bad scenario is refused before any folder
     out = args.out if args.out is not None else str(Path("benchmarks") / scenario.name)
     output_dir(out, "--out")
-    table = run_benchmark(args.scenario, out, methods=args.methods or METHODS,
+    table = run_benchmark(args.scenario, out, methods=args.methods or DEFAULT_METHODS,
                           trials=args.trials, seed=args.seed, budget_sims=args.budget_sims,
                           samples=args.samples, ours_budget=args.ours_budget,
                           workers=args.workers, build_dir=args.build_dir, progress=_Stages())

@@ -15,7 +15,8 @@ Everything is resumable: each method's trial and each evaluation is a run direct
 call) under ``out/``, finished by a small ``trial.json``; the methods are deterministic given
 their seed, so a benchmark killed at any point and run again gives the same table. Layout::
 
-    out/ours/t{i}/              an ``rgmcad optimize`` run directory
+    out/ours/t{i}/              an ``rgmcad optimize`` run directory (out/full/t{i}: the
+                                same with one global model, ``factorized=False``: Fig. 16)
     out/{method}-B{B}/t{i}/     a baseline's simulations and trial.json
     out/eval/{method}[-B{B}]/t{i}/   the evaluation of that trial's layout
     out/benchmark.md, benchmark.json, robustness.png
@@ -38,11 +39,14 @@ from rgmcad.runs.executor import make_executor
 from rgmcad.runs.problem import ScenarioProblem, scenario_digest
 from rgmcad.runs.store import RecordedProblem, RunStore, _write_atomic
 
-__all__ = ["METHODS", "LABELS", "TRIAL", "TABLE_MD", "TABLE_JSON", "PLOT", "run_benchmark",
-           "budget_of_ours"]
+__all__ = ["METHODS", "DEFAULT_METHODS", "LEARNERS", "LABELS", "TRIAL", "TABLE_MD",
+           "TABLE_JSON", "PLOT", "run_benchmark", "budget_of_ours"]
 
-METHODS = ("ours", "b1", "b2", "b3", "cma")
-LABELS = {"ours": "ours (factorised SPD)", "b1": "B1 random search",
+METHODS = ("ours", "full", "b1", "b2", "b3", "cma")
+DEFAULT_METHODS = ("ours", "b1", "b2", "b3", "cma")
+LEARNERS = ("ours", "full")  # our method: factorised, and with one global model (Fig. 16)
+LABELS = {"ours": "ours (factorised SPD)", "full": "ours, full SPD (one model)",
+          "b1": "B1 random search",
           "b2": "B2 uniform + local robustness", "b3": "B3 GP optimisation (EI)",
           "cma": "CMA-ES"}
 TRIAL = "trial.json"
@@ -90,11 +94,18 @@ def budget_of_ours(summary: dict) -> int:
                - summary.get("discarded", 0))
 
 
-def _ours(scenario_path, out: Path, seed: int, budget: str, settings, workers, build_dir,
-          progress) -> dict:
+def _ours(method: str, scenario_path, out: Path, seed: int, budget: str, settings, workers,
+          build_dir, progress) -> dict:
+    """A trial of our method (``full``: one global model, ``factorized=False``)."""
+    from dataclasses import replace
+
+    from rgmcad.learning.settings import budget as budget_settings
     from rgmcad.runs.workflow import optimize_scenario
 
-    run_dir = out / "ours" / f"t{seed}"
+    run_dir = out / method / f"t{seed}"
+    settings = budget_settings(budget) if settings is None else settings
+    if method == "full":
+        settings = replace(settings, factorized=False)
     done = _read(run_dir / TRIAL)
     if done is not None:
         return done
@@ -111,7 +122,7 @@ def _ours(scenario_path, out: Path, seed: int, budget: str, settings, workers, b
     s = run.summary
     wall = time.perf_counter() - start
     overhead = wall - timed[0].wait_seconds if timed else 0.0
-    trial = {"method": "ours", "seed": seed, "vector": s["vector"],
+    trial = {"method": method, "seed": seed, "vector": s["vector"],
              "budget_sims": budget_of_ours(s), "simulations": s["simulations"],
              "score": s["probability"], "time_s": s["simulation_seconds"] + overhead}
     _write(run_dir / TRIAL, trial)
@@ -161,7 +172,7 @@ def _evaluate(identity: dict, run_dir: Path, problem, executor, x, samples: int,
     return out
 
 
-def run_benchmark(scenario_path, out_dir, *, methods=METHODS, trials: int = 10,
+def run_benchmark(scenario_path, out_dir, *, methods=DEFAULT_METHODS, trials: int = 10,
                   seed: int = 0, budget_sims: int | None = None, samples: int = 50,
                   ours_budget: str = "default", ours_settings=None,
                   workers: int | None = None, build_dir=None, progress=None) -> dict:
@@ -195,21 +206,22 @@ def run_benchmark(scenario_path, out_dir, *, methods=METHODS, trials: int = 10,
     start = time.perf_counter()
     seeds = [seed + i for i in range(trials)]
     found: dict[str, list[dict]] = {}
-    if "ours" in methods:
+    for m in (m for m in methods if m in LEARNERS):
         for s in seeds:
-            progress.stage(f"ours t{s}")
-            found.setdefault("ours", []).append(_ours(
-                scenario_path, out, s, ours_budget, ours_settings, workers, build_dir, progress))
+            progress.stage(f"{m} t{s}")
+            found.setdefault(m, []).append(_ours(
+                m, scenario_path, out, s, ours_budget, ours_settings, workers, build_dir,
+                progress))
     budget = budget_sims if budget_sims is not None else int(
         np.floor(np.mean([t["budget_sims"] for t in found["ours"]])))
     problem = ScenarioProblem(scenario_path, build_dir)
     executor = make_executor(workers, problem.context)
     base = {"format": 1, "scenario": scenario.name, "scenario_sha256": digest}
-    tags = {m: "ours" if m == "ours" else f"{m}-B{budget}" for m in methods}
+    tags = {m: m if m in LEARNERS else f"{m}-B{budget}" for m in methods}
     evaluations: dict[str, list[dict]] = {}
     try:
         for m in methods:
-            if m == "ours":
+            if m in LEARNERS:
                 continue
             for s in seeds:
                 progress.stage(f"{m} t{s}")
