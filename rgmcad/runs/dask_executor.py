@@ -25,15 +25,24 @@ from __future__ import annotations
 
 import hashlib
 import threading
+import time
 from collections.abc import Callable, Sequence
-from functools import lru_cache
+from functools import lru_cache, partial
 from pathlib import Path
 
+import dask
 from distributed import WorkerPlugin
 
 from rgmcad.errors import RgmcadError
 
-__all__ = ["DaskExecutor", "fingerprint"]
+__all__ = ["DaskExecutor", "fingerprint", "LOCAL_CONFIG"]
+
+LOCAL_CONFIG = {"distributed.worker.profile.enabled": False,
+                "distributed.scheduler.worker-saturation": float("inf")}
+"""Dask settings of a ``local:N`` cluster: no statistical profiler (a thread sampling every
+worker's stack each 10 ms), and every task sent to a worker as soon as it is known rather
+than when the worker asks for more (a round trip between two short simulations); set them
+in a real cluster's configuration too (README, "Running on a cluster")."""
 
 @lru_cache(maxsize=1)
 def _code_digest() -> str:
@@ -107,11 +116,16 @@ class DaskExecutor:
         What builds each worker's context (see the module docstring); needed by
         :meth:`map_context`.
     max_batch : int, default 8
-        Most items per task (tasks of ``ceil(n / (8 workers))`` items, as the process pool).
+        Most items per task.
+    tasks_per_worker : int, default 2
+        A call of ``map`` over n items makes tasks of ``ceil(n / (tasks_per_worker
+        workers))`` items (at most ``max_batch``): fewer, larger tasks than the process
+        pool's 8 per worker, as a Dask task costs 2-3 ms of the client's and the
+        scheduler's time against the pool's 0.1 ms (tools/bench_cluster.py).
     """
 
     def __init__(self, scheduler: str, payload=None, max_batch: int = 8,
-                 connect_timeout: float = 20.0):
+                 connect_timeout: float = 20.0, tasks_per_worker: int = 2):
         import logging
 
         from distributed import Client, LocalCluster
@@ -121,14 +135,18 @@ class DaskExecutor:
         logging.getLogger("distributed.client").setLevel(logging.CRITICAL)
         self.address = scheduler
         self.max_batch = max_batch
+        self.tasks_per_worker = tasks_per_worker
+        self._counted = (-1e9, 1)
         self.expected = fingerprint()
         self._cluster = None
         try:
             if scheduler.startswith("local:"):
                 n = _local_workers(scheduler)
                 logging.getLogger("distributed").setLevel(logging.ERROR)
-                self._cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
-                                             scheduler_kwargs={"dashboard": False})
+                with dask.config.set(LOCAL_CONFIG):
+                        self._cluster = LocalCluster(n_workers=n, threads_per_worker=1,
+                                                 processes=True,
+                                                 scheduler_kwargs={"dashboard": False})
                 self.client = Client(self._cluster, set_as_default=False)
             else:
                 self.client = Client(scheduler, timeout=connect_timeout, set_as_default=False)
@@ -148,11 +166,16 @@ class DaskExecutor:
 
     @property
     def workers(self) -> int:
-        try:
-            info = self.client.scheduler_info()["workers"]
-            return max(1, sum(w.get("nthreads", 1) for w in info.values()))
-        except Exception:  # noqa: BLE001 - gone: the next task says so
-            return 1
+        """Worker threads in the cluster now (asked of the scheduler at most every 2 s: a
+        round trip)."""
+        now = time.monotonic()
+        if now - self._counted[0] > 2.0:
+            try:
+                info = self.client.scheduler_info()["workers"]
+                self._counted = (now, max(1, sum(w.get("nthreads", 1) for w in info.values())))
+            except Exception:  # noqa: BLE001 - gone: the next task says so
+                self._counted = (now, self._counted[1])
+        return self._counted[1]
 
     def _check_versions(self) -> None:
         versions = self.client.run(fingerprint)
@@ -170,10 +193,12 @@ class DaskExecutor:
 
     def _submit(self, apply: Callable, args: tuple, items):
         items = list(items)
-        size = max(1, min(self.max_batch, -(-len(items) // (8 * self.workers))))
+        size = max(1, min(self.max_batch,
+                          -(-len(items) // (self.tasks_per_worker * self.workers))))
         try:
-            futures = [self.client.submit(apply, *args, items[i:i + size], pure=False)
-                       for i in range(0, len(items), size)]
+            futures = self.client.map(partial(apply, *args),
+                                      [items[i:i + size] for i in range(0, len(items), size)],
+                                      pure=False) if items else []
         except Exception as exc:  # noqa: BLE001
             raise _lost(self.address, exc) from None
         return self._results(futures)
