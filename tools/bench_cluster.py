@@ -122,7 +122,7 @@ def main() -> None:
     ap.add_argument("--batch", type=int, default=10)
     ap.add_argument("--repeat", type=int, default=3)
     ap.add_argument("--tasks", type=int, default=1000)
-    ap.add_argument("--tasks-per-worker", type=int, default=2)
+    ap.add_argument("--tasks-per-worker", type=int, default=1)
     ap.add_argument("--samples", type=int, default=20)
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--skip-table", action="store_true")

@@ -117,15 +117,16 @@ class DaskExecutor:
         :meth:`map_context`.
     max_batch : int, default 8
         Most items per task.
-    tasks_per_worker : int, default 2
+    tasks_per_worker : int, default 1
         A call of ``map`` over n items makes tasks of ``ceil(n / (tasks_per_worker
         workers))`` items (at most ``max_batch``): fewer, larger tasks than the process
-        pool's 8 per worker, as a Dask task costs 2-3 ms of the client's and the
-        scheduler's time against the pool's 0.1 ms (tools/bench_cluster.py).
+        pool's 8 per worker, as a Dask task costs 1.5-3 ms of the client's and the
+        scheduler's time against the pool's 0.1 ms; an unlucky split is evened out by
+        the next batch, already submitted (tools/bench_cluster.py: 1 beat 2 on ballrun).
     """
 
     def __init__(self, scheduler: str, payload=None, max_batch: int = 8,
-                 connect_timeout: float = 20.0, tasks_per_worker: int = 2):
+                 connect_timeout: float = 20.0, tasks_per_worker: int = 1):
         import logging
 
         from distributed import Client, LocalCluster
