@@ -147,3 +147,19 @@ def test_a_scheduler_that_disappears_stops_the_run_in_one_line_and_it_resumes(se
     got = json.loads(again.stdout)
     assert got["replayed"] >= 40
     assert {k: got[k] for k in SAME} == {k: serial[k] for k in SAME}
+
+
+def test_a_benchmark_on_dask_gives_the_process_table(cluster, tmp_path):
+    from rgmcad.runs.benchmark import run_benchmark
+
+    def table(out, **executor):
+        got = run_benchmark(SIMPLE, out, methods=("b1", "cma"), trials=1, budget_sims=12,
+                            samples=2, **executor)
+        return {k: v for k, v in got.items() if k != "wall_time"}
+
+    rows = table(tmp_path / "dask", scheduler=cluster.scheduler_address)["rows"]
+    serial = table(tmp_path / "serial", workers=1)["rows"]
+    def untimed(r):  # seconds differ from run to run
+        return {k: v for k, v in r.items() if not k.startswith("time")}
+
+    assert [untimed(r) for r in rows] == [untimed(r) for r in serial]

@@ -9,7 +9,7 @@ import json
 import sys
 from pathlib import Path
 
-from rgmcad.cli.common import add_scenario_arg, say
+from rgmcad.cli.common import add_scenario_arg, add_scheduler_args, parts_dir_arg, say
 
 __all__ = ["configure", "run"]
 
@@ -56,6 +56,7 @@ def configure(p: argparse.ArgumentParser) -> None:
     p.add_argument("--workers", type=int, default=None, help="simulation processes, 1 to 4 per "
                    "CPU (default: every CPU); results do not depend on it")
     p.add_argument("--json", action="store_true", help="print the table as one JSON object")
+    add_scheduler_args(p)
 
 
 class _Stages:
@@ -79,13 +80,15 @@ def run(args) -> int:
     from rgmcad.scene.loader import load_scenario
 
     check_workers(args.workers)
-    scenario = load_scenario(args.scenario)  # a bad scenario is refused before any folder
+    parts_dir = parts_dir_arg(args)
+    scenario = load_scenario(args.scenario, parts_dir=parts_dir)  # refused before any folder
     out = args.out if args.out is not None else str(Path("benchmarks") / scenario.name)
     output_dir(out, "--out")
     table = run_benchmark(args.scenario, out, methods=args.methods or DEFAULT_METHODS,
                           trials=args.trials, seed=args.seed, budget_sims=args.budget_sims,
                           samples=args.samples, ours_budget=args.ours_budget,
-                          workers=args.workers, build_dir=args.build_dir, progress=_Stages())
+                          workers=args.workers, build_dir=args.build_dir, progress=_Stages(),
+                          scheduler=args.scheduler, parts_dir=parts_dir)
     if args.json:
         say(json.dumps(table))
         return 0

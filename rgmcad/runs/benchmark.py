@@ -34,8 +34,9 @@ from pathlib import Path
 
 import numpy as np
 
+from rgmcad.parts.family import family_digest
 from rgmcad.runs.checks import MAX_SAMPLES, MAX_SEED, check_range, check_workers
-from rgmcad.runs.executor import make_executor
+from rgmcad.runs.executor import make_executor, scheduler_from_env
 from rgmcad.runs.problem import ScenarioProblem, scenario_digest
 from rgmcad.runs.store import RecordedProblem, RunStore, _write_atomic
 
@@ -95,7 +96,7 @@ def budget_of_ours(summary: dict) -> int:
 
 
 def _ours(method: str, scenario_path, out: Path, seed: int, budget: str, settings, workers,
-          build_dir, progress) -> dict:
+          build_dir, progress, scheduler=None, parts_dir=None) -> dict:
     """A trial of our method (``full``: one global model, ``factorized=False``)."""
     from dataclasses import replace
 
@@ -118,7 +119,8 @@ def _ours(method: str, scenario_path, out: Path, seed: int, budget: str, setting
     start = time.perf_counter()
     run = optimize_scenario(scenario_path, seed=seed, budget=budget, settings=settings,
                             run_dir=run_dir, workers=workers, build_dir=build_dir,
-                            progress=progress, recorded=recorded)
+                            progress=progress, recorded=recorded, scheduler=scheduler,
+                            parts_dir=parts_dir)
     s = run.summary
     wall = time.perf_counter() - start
     overhead = wall - timed[0].wait_seconds if timed else 0.0
@@ -175,9 +177,12 @@ def _evaluate(identity: dict, run_dir: Path, problem, executor, x, samples: int,
 def run_benchmark(scenario_path, out_dir, *, methods=DEFAULT_METHODS, trials: int = 10,
                   seed: int = 0, budget_sims: int | None = None, samples: int = 50,
                   ours_budget: str = "default", ours_settings=None,
-                  workers: int | None = None, build_dir=None, progress=None) -> dict:
+                  workers: int | None = None, build_dir=None, progress=None,
+                  scheduler: str | None = None, parts_dir=None) -> dict:
     """Run (or continue) a benchmark and write its table and figure; returns the table
-    (what ``benchmark.json`` holds). See the module docstring."""
+    (what ``benchmark.json`` holds). See the module docstring. ``scheduler``: a Dask
+    scheduler's address or ``local:N`` (None: ``RGMCAD_SCHEDULER`` if set, else ``workers``
+    processes); ``parts_dir``: the user's part families (``--parts``)."""
     from rgmcad.errors import UsageError
     from rgmcad.parts.store import DEFAULT_BUILD_DIR
     from rgmcad.runs.workflow import RunProgress
@@ -199,7 +204,7 @@ def run_benchmark(scenario_path, out_dir, *, methods=DEFAULT_METHODS, trials: in
     elif "ours" not in methods:
         raise UsageError("--budget-sims", "", "needed when ours is not among --methods (the "
                          "budget is otherwise the mean number of simulations ours used)")
-    scenario = load_scenario(scenario_path)
+    scenario = load_scenario(scenario_path, parts_dir=parts_dir)
     digest = scenario_digest(scenario_path)
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
@@ -211,12 +216,15 @@ def run_benchmark(scenario_path, out_dir, *, methods=DEFAULT_METHODS, trials: in
             progress.stage(f"{m} t{s}")
             found.setdefault(m, []).append(_ours(
                 m, scenario_path, out, s, ours_budget, ours_settings, workers, build_dir,
-                progress))
+                progress, scheduler, parts_dir))
     budget = budget_sims if budget_sims is not None else int(
         np.floor(np.mean([t["budget_sims"] for t in found["ours"]])))
-    problem = ScenarioProblem(scenario_path, build_dir)
-    executor = make_executor(workers, problem.context)
+    problem = ScenarioProblem(scenario_path, build_dir, parts_dir)
+    executor = make_executor(workers, problem.context, scheduler=scheduler_from_env(scheduler),
+                             payload=problem.payload)
     base = {"format": 1, "scenario": scenario.name, "scenario_sha256": digest}
+    if parts_dir is not None:  # other families, other results: not the same trials
+        base["parts"] = {n: family_digest(f) for n, f in sorted(scenario.families.items())}
     tags = {m: m if m in LEARNERS else f"{m}-B{budget}" for m in methods}
     evaluations: dict[str, list[dict]] = {}
     try:
