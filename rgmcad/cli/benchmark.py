@@ -9,12 +9,15 @@ import json
 import sys
 from pathlib import Path
 
-from rgmcad.cli.common import add_scenario_arg, add_scheduler_args, parts_dir_arg, say
+from rgmcad.cli.common import (
+    add_scenario_arg,
+    add_scheduler_args,
+    budget_name,
+    parts_dir_arg,
+    say,
+)
 
 __all__ = ["configure", "run"]
-
-USES_BUILD_DIR = True
-
 
 def _methods(text: str) -> tuple[str, ...]:
     from rgmcad.runs.benchmark import METHODS
@@ -27,12 +30,6 @@ def _methods(text: str) -> tuple[str, ...]:
     return names
 
 
-def _budget_name(name: str) -> str:
-    from rgmcad.learning.settings import BUDGETS
-
-    if name not in BUDGETS:
-        raise argparse.ArgumentTypeError(f"unknown budget {name!r}; valid: {', '.join(BUDGETS)}")
-    return name
 
 
 def configure(p: argparse.ArgumentParser) -> None:
@@ -50,7 +47,7 @@ def configure(p: argparse.ArgumentParser) -> None:
                    help="simulations per baseline run (default: the mean our method used)")
     p.add_argument("--samples", type=int, default=50, help="valid layouts per radius in the "
                    "evaluation of each layout (default 50; 30 radii)")
-    p.add_argument("--ours-budget", type=_budget_name, default="default",
+    p.add_argument("--ours-budget", type=budget_name, default="default",
                    metavar="{default,small}", help="settings of our method (default: the "
                    "paper's Table 1 settings)")
     p.add_argument("--workers", type=int, default=None, help="simulation processes, 1 to 4 per "

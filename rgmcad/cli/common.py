@@ -56,9 +56,24 @@ def load_parts_of(scenario, args) -> dict:
     """Built parts of ``scenario`` from the part cache (``--build-dir``), built if missing."""
     from rgmcad.scene.bodies import load_parts
 
+    note_first_build(args)
+    return load_parts(scenario, Path(args.build_dir))
+
+
+def note_first_build(args) -> None:
+    """Say on stderr that parts are about to be built, when the part cache does not exist."""
     if not Path(args.build_dir).exists():
         print(f"building parts into {args.build_dir} (first run only)...", file=sys.stderr)
-    return load_parts(scenario, Path(args.build_dir))
+
+
+def budget_name(name: str) -> str:
+    """``--budget``, checked against the library's presets when given (importing the learner
+    takes seconds, too long for every command's start)."""
+    from rgmcad.learning.settings import BUDGETS
+
+    if name not in BUDGETS:
+        raise argparse.ArgumentTypeError(f"unknown budget {name!r}; valid: {', '.join(BUDGETS)}")
+    return name
 
 
 def print_table(rows: list[tuple], headers: tuple) -> None:

@@ -6,9 +6,14 @@ from __future__ import annotations
 import argparse
 import json
 import sys
-from pathlib import Path
 
-from rgmcad.cli.common import add_scenario_arg, add_scheduler_args, parts_dir_arg, say
+from rgmcad.cli.common import (
+    add_scenario_arg,
+    add_scheduler_args,
+    note_first_build,
+    parts_dir_arg,
+    say,
+)
 
 __all__ = ["configure", "run"]
 
@@ -65,8 +70,7 @@ def run(args) -> int:
     check_workers(args.workers)
     if args.out is not None:  # and again, trying, by the workflow, with its default
         output_file(args.out, "--out", plot_suffixes())
-    if not Path(args.build_dir).exists():
-        sys.stderr.write(f"building parts into {args.build_dir} (first run only)...\n")
+    note_first_build(args)
     bar = _Bar()
     try:
         result = evaluate_layout(args.scenario, args.layout, samples=args.samples,

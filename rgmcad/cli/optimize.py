@@ -9,19 +9,18 @@ import json
 import sys
 from pathlib import Path
 
-from rgmcad.cli.common import add_scenario_arg, add_scheduler_args, parts_dir_arg, say
+from rgmcad.cli.common import (
+    add_scenario_arg,
+    add_scheduler_args,
+    budget_name,
+    note_first_build,
+    parts_dir_arg,
+    say,
+)
 
 __all__ = ["configure", "run"]
 
 
-def _budget_name(name: str) -> str:
-    """``--budget``, checked against the library's presets when given (importing the learner
-    takes seconds, too long for every command's start)."""
-    from rgmcad.learning.settings import BUDGETS
-
-    if name not in BUDGETS:
-        raise argparse.ArgumentTypeError(f"unknown budget {name!r}; valid: {', '.join(BUDGETS)}")
-    return name
 
 
 def configure(p: argparse.ArgumentParser) -> None:
@@ -34,7 +33,7 @@ def configure(p: argparse.ArgumentParser) -> None:
     p.add_argument("--workers", type=int, default=None,
                    help="simulation processes, 1 to 4 per CPU (default: every CPU); results do "
                    "not depend on it")
-    p.add_argument("--budget", type=_budget_name, default="default", metavar="{default,small}",
+    p.add_argument("--budget", type=budget_name, default="default", metavar="{default,small}",
                    help="default: the paper's Table 1 settings; small: a quick look")
     p.add_argument("--batch", type=int, metavar="N", help="simulations per exploration batch, "
                    "1 to 10000 (default 10); more keeps more workers busy")
@@ -89,8 +88,7 @@ def run(args) -> int:
     check_workers(args.workers)
     if args.run_dir is not None:  # and again, trying, when the run store opens it
         output_dir(args.run_dir, "--run")
-    if not Path(args.build_dir).exists():
-        sys.stderr.write(f"building parts into {args.build_dir} (first run only)...\n")
+    note_first_build(args)
     bar = _Bar()
     try:
         done = optimize_scenario(args.scenario, seed=args.seed, budget=args.budget,

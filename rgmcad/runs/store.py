@@ -259,10 +259,6 @@ class RunStore:
 
     # --- results -----------------------------------------------------------------------------
 
-    @property
-    def finished(self) -> bool:
-        return (self.directory / RESULT).exists()
-
     def write_result(self, result: Mapping) -> Path:
         path = self.directory / RESULT
         _write_atomic(path, (json.dumps(result, indent=1) + "\n").encode())

@@ -233,14 +233,12 @@ def _at_layout(model, result, chosen: dict, x: np.ndarray):
 
     if chosen["is_optimum"]:
         per_event, probability = dict(result.event_probabilities), result.probability
-        weakest, tol = result.weakest_event, result.tolerances
+        tol = result.tolerances
     else:
         per_event = {e: float(p[0]) for e, p in model.event_probabilities(x).items()}
         probability = float(model.success_proba(x)[0])
-        weakest, _ = model.weakest_link(x)
         tol = placement_tolerance(model, x, result.settings)
-    weakest_probability = 1.0 if weakest is None else float(
-        model.requirement_probabilities(x.reshape(1, -1))[weakest][0])
+    weakest, weakest_probability = model.weakest_link(x)
     return per_event, probability, weakest, weakest_probability, tol
 
 
