@@ -248,3 +248,10 @@ def test_negate_always_wakes_its_children_at_the_timeout():
     result = run(tiny(objects, events, duration=1.0))
     assert result.outcome.value == "success"
     assert result.events[0].time == result.events[1].time
+
+
+def test_every_event_type_a_scenario_may_name_has_a_condition_and_no_other():
+    from rgmcad.scene.eventspec import EVENT_TYPES
+    from rgmcad.sim.events import EVENTS
+
+    assert set(EVENTS) == set(EVENT_TYPES)

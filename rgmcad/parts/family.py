@@ -87,6 +87,7 @@ class Family:
     infinite : an infinite plane: no solid, no mesh; its collision piece is a PlanePiece.
     description : one line for ``rgmcad check`` and the docs.
     source : the family file (filled by the loader); its text enters the build cache key.
+    source_digest : the hash of that text, taken once as the file is imported.
     """
 
     name: str
@@ -98,6 +99,7 @@ class Family:
     infinite: bool = False
     description: str = ""
     source: Path | None = None
+    source_digest: str = ""
 
     def make_params(self, values: Mapping[str, typing.Any], *, where: str = "", key: str = ""):
         """Typed parameters from a mapping read from a file; bad input raises ScenarioError."""
@@ -249,7 +251,8 @@ def _import_family(path: Path) -> Family:
             raise
         family = getattr(module, "FAMILY", None)
         if isinstance(family, Family):
-            module.FAMILY = dataclasses.replace(family, source=path)
+            module.FAMILY = dataclasses.replace(family, source=path,
+                                                source_digest=_digest(path.read_text()))
     family = getattr(module, "FAMILY", None)
     if not isinstance(family, Family):
         raise ScenarioError(str(path), "FAMILY", "a part file must define FAMILY = Family(...)")
@@ -258,6 +261,8 @@ def _import_family(path: Path) -> Family:
 
 def family_digest(family: Family) -> str:
     """Hash of the family's source file: part of every build cache key."""
+    if family.source_digest:
+        return family.source_digest
     text = family.source.read_text() if family.source else inspect.getsource(family.build)
     return _digest(text)
 
