@@ -5,7 +5,8 @@ the scenario's `solved` layout. Runs resume: an existing run or evaluation in OU
 so use a fresh OUT for other settings.
 
     uv run python tools/acceptance_optimize.py [--scenarios simple ballrun] [--seeds 0 1 2]
-        [--samples 50] [--workers 2] [--budget default] [--out acceptance]
+        [--samples 50] [--workers 2 | --scheduler ADDRESS|local:N] [--budget default]
+        [--out acceptance]
 
 About 5 min for `simple` and 15 min for `ballrun` on 2 cores (most of it in `evaluate`).
 """
@@ -43,12 +44,15 @@ def main() -> None:
     parser.add_argument("--seeds", nargs="+", type=int, default=[0, 1, 2])
     parser.add_argument("--samples", type=int, default=50)
     parser.add_argument("--workers", type=int, default=2)
+    parser.add_argument("--scheduler", default=None, metavar="ADDRESS",
+                        help="simulate on a Dask cluster (ADDRESS or local:N) instead of --workers")
     parser.add_argument("--budget", default="default")
     parser.add_argument("--out", default="acceptance")
     args = parser.parse_args()
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
-    common = ["--workers", str(args.workers)]
+    common = (["--scheduler", args.scheduler] if args.scheduler
+              else ["--workers", str(args.workers)])
     evaluate = ["--samples", str(args.samples), "--seed", "0", *common]
 
     for name in args.scenarios:

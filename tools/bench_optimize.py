@@ -13,7 +13,8 @@
    throughput, pool start included).
 
     uv run python tools/bench_optimize.py [--scenario scenarios/ballrun.toml]
-        [--budget default] [--workers 2] [--seed 0] [--layouts 200] [--repeat 3] [--skip-run | --skip-speedup]
+        [--budget default] [--workers 2] [--scheduler ADDRESS|local:N] [--seed 0]
+        [--layouts 200] [--repeat 3] [--skip-run | --skip-speedup]
 """
 
 import argparse
@@ -79,7 +80,8 @@ def overhead(args) -> None:
         start = time.perf_counter()
         done = optimize_scenario(args.scenario, seed=args.seed, budget=args.budget,
                                  run_dir=Path(tmp) / "run", workers=args.workers,
-                                 build_dir=args.build_dir, recorded=TimedProblem)
+                                 build_dir=args.build_dir, recorded=TimedProblem,
+                                 scheduler=args.scheduler)
         wall = time.perf_counter() - start
         cpu = _cpu_seconds() - cpu_start  # the pool's workers have exited: counted
         summary, code = done.summary, 0 if done.verified else 1
@@ -146,6 +148,9 @@ def main() -> None:
     parser.add_argument("--scenario", default="scenarios/ballrun.toml")
     parser.add_argument("--budget", default="default")
     parser.add_argument("--workers", type=int, default=None)
+    parser.add_argument("--scheduler", default=None, metavar="ADDRESS",
+                        help="the run on a Dask cluster (ADDRESS or local:N; the speed-up "
+                             "part compares the process pool with 1 and 2 workers)")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--layouts", type=int, default=200)
     parser.add_argument("--repeat", type=int, default=3, help="speed-up measurements")
