@@ -30,6 +30,7 @@ from pathlib import Path
 import numpy as np
 
 from rgmcad.errors import ScenarioError
+from rgmcad.files import write_json_atomic
 from rgmcad.parts.family import MAIN, Family, Hinge, family_digest, params_dict
 from rgmcad.parts.pieces import Piece, piece_from_dict
 
@@ -353,14 +354,4 @@ def write_manifest(parts: Iterable[BuiltPart], out_dir: Path = DEFAULT_BUILD_DIR
     out_dir.mkdir(parents=True, exist_ok=True)
     data = {"build_version": BUILD_VERSION, "units": UNITS,
             "parts": [_manifest_entry(p, out_dir) for p in parts], **(extra or {})}
-    path = out_dir / _MANIFEST
-    fd, tmp = tempfile.mkstemp(prefix=".manifest.", suffix=".json", dir=out_dir)
-    try:
-        with os.fdopen(fd, "w") as handle:
-            json.dump(data, handle, indent=1)
-        os.replace(tmp, path)
-    except BaseException:
-        with contextlib.suppress(FileNotFoundError):
-            os.unlink(tmp)
-        raise
-    return path
+    return write_json_atomic(out_dir / _MANIFEST, data)

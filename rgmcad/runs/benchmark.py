@@ -34,11 +34,12 @@ from pathlib import Path
 
 import numpy as np
 
+from rgmcad.files import write_atomic, write_json_atomic
 from rgmcad.parts.family import family_digest
 from rgmcad.runs.checks import MAX_SAMPLES, MAX_SEED, check_range, check_workers
 from rgmcad.runs.executor import make_executor, scheduler_from_env
 from rgmcad.runs.problem import ScenarioProblem, scenario_digest
-from rgmcad.runs.store import RecordedProblem, RunStore, _write_atomic
+from rgmcad.runs.store import RecordedProblem, RunStore
 
 __all__ = ["METHODS", "DEFAULT_METHODS", "LEARNERS", "LABELS", "TRIAL", "TABLE_MD",
            "TABLE_JSON", "PLOT", "run_benchmark", "budget_of_ours"]
@@ -62,9 +63,6 @@ def _read(path: Path) -> dict | None:
     except (OSError, ValueError):
         return None
 
-
-def _write(path: Path, data: dict) -> None:
-    _write_atomic(path, (json.dumps(data, indent=1) + "\n").encode())
 
 
 class _Timed(RecordedProblem):
@@ -127,7 +125,7 @@ def _ours(method: str, scenario_path, out: Path, seed: int, budget: str, setting
     trial = {"method": method, "seed": seed, "vector": s["vector"],
              "budget_sims": budget_of_ours(s), "simulations": s["simulations"],
              "score": s["probability"], "time_s": s["simulation_seconds"] + overhead}
-    _write(run_dir / TRIAL, trial)
+    write_json_atomic(run_dir / TRIAL, trial)
     return trial
 
 
@@ -149,7 +147,7 @@ def _baseline(method: str, identity: dict, run_dir: Path, problem, executor, bud
                  "budget_sims": budget, "simulations": r.n_simulations,
                  "evaluations": r.n_evaluations, "score": r.score,
                  "time_s": recorded.sim_seconds + overhead}
-        _write(run_dir / TRIAL, trial)
+        write_json_atomic(run_dir / TRIAL, trial)
     return trial
 
 
@@ -170,7 +168,7 @@ def _evaluate(identity: dict, run_dir: Path, problem, executor, x, samples: int,
                "rho_g": curve.rho_g, "rho_g_interval": [curve.rho_g_low, curve.rho_g_high],
                "eps": curve.eps.tolist(), "rho": curve.rho.tolist(),
                "counts": curve.counts.tolist(), "simulations": curve.simulations}
-        _write(run_dir / TRIAL, out)
+        write_json_atomic(run_dir / TRIAL, out)
     return out
 
 
@@ -248,8 +246,8 @@ def run_benchmark(scenario_path, out_dir, *, methods=DEFAULT_METHODS, trials: in
         executor.close()
     table = _table(scenario.name, methods, seeds, budget, samples, found, evaluations)
     table["wall_time"] = time.perf_counter() - start
-    _write(out / TABLE_JSON, table)
-    (out / TABLE_MD).write_text(table_markdown(table))
+    write_json_atomic(out / TABLE_JSON, table)
+    write_atomic(out / TABLE_MD, table_markdown(table))
     plot_benchmark(table, out / PLOT)
     return table
 

@@ -51,6 +51,7 @@ from typing import Any
 import numpy as np
 
 from rgmcad.errors import RunDirectoryError
+from rgmcad.files import write_atomic, write_json_atomic
 from rgmcad.runs.executor import map_blocks, parent_only
 from rgmcad.runs.lock import DirectoryLock, LockedError
 from rgmcad.runs.problem import SimRecord, simulate_task, validity_task
@@ -86,15 +87,6 @@ def run_identity(scenario_name: str, scenario_sha256: str, seed: int, settings,
 
 def _key(x) -> bytes:
     return np.ascontiguousarray(x, dtype=np.float64).tobytes()
-
-
-def _write_atomic(path: Path, data: bytes) -> None:
-    tmp = path.with_name(path.name + ".tmp")
-    with open(tmp, "wb") as f:
-        f.write(data)
-        f.flush()
-        os.fsync(f.fileno())
-    os.replace(tmp, path)
 
 
 class RunStore:
@@ -159,7 +151,7 @@ class RunStore:
                 raise RunDirectoryError(str(path), "", f"missing, but the directory holds a run "
                                         f"({', '.join(held)}) that cannot be checked to be this "
                                         "one; restore settings.json, or choose another --run")
-            _write_atomic(path, (json.dumps(self.identity, indent=1) + "\n").encode())
+            write_json_atomic(path, self.identity)
             return
         try:
             stored = json.loads(path.read_text())
@@ -227,7 +219,7 @@ class RunStore:
             f.write(b"".join(line for _, line, _ in bad))
             f.flush()
             os.fsync(f.fileno())
-        _write_atomic(path, b"".join(good))  # after the copy: a crash between loses nothing
+        write_atomic(path, b"".join(good))  # after the copy: a crash between loses nothing
         n, _, why = bad[0]
         self.n_rejected = len(bad)
         logger.warning("%s: %d line(s) that are not simulation records (line %d: %s) moved to "
@@ -261,7 +253,7 @@ class RunStore:
 
     def write_result(self, result: Mapping) -> Path:
         path = self.directory / RESULT
-        _write_atomic(path, (json.dumps(result, indent=1) + "\n").encode())
+        write_json_atomic(path, result)
         return path
 
     def read_result(self) -> dict | None:
@@ -295,7 +287,7 @@ class RunStore:
         """Pickle ``model`` to ``model.pkl``; :attr:`model_sha256` is then its SHA-256."""
         path = self.directory / MODEL
         data = pickle.dumps(model, protocol=pickle.HIGHEST_PROTOCOL)
-        _write_atomic(path, data)
+        write_atomic(path, data)
         self.model_sha256 = hashlib.sha256(data).hexdigest()
         return path
 

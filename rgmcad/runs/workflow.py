@@ -24,6 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
+from rgmcad.files import write_atomic, write_json_atomic
 from rgmcad.parts.family import family_digest
 from rgmcad.parts.store import DEFAULT_BUILD_DIR
 from rgmcad.runs.checks import (
@@ -251,8 +252,7 @@ def _readable_json(path: Path) -> bool:
 
 
 def _write_json(path: Path, data) -> Path:
-    path.write_text(json.dumps(data, indent=1) + "\n")
-    return path
+    return write_json_atomic(path, data)
 
 
 def _write_outputs(scenario, store, recorded, result, chosen, wall_time, seed, budget) -> dict:
@@ -324,7 +324,7 @@ def _write_outputs(scenario, store, recorded, result, chosen, wall_time, seed, b
     }
     plot_slice(scenario, model, x, spread, run_dir / SLICE_PLOT)
     plot_progress(result, run_dir / PROGRESS_PLOT)
-    (run_dir / REPORT_FILE).write_text(report_markdown(scenario, summary, low, high))
+    write_atomic(run_dir / REPORT_FILE, report_markdown(scenario, summary, low, high))
     store.write_result(summary)  # last: its presence marks the run finished
     return summary
 

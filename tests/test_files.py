@@ -1,0 +1,27 @@
+"""Files written whole or not at all (run stores, manifests, layouts, reports)."""
+
+import json
+import os
+
+import pytest
+
+from rgmcad.files import write_atomic, write_json_atomic
+
+
+def test_a_write_that_dies_midway_leaves_the_old_file_and_no_debris(tmp_path, monkeypatch):
+    path = tmp_path / "layout.json"
+    write_json_atomic(path, {"x": 1})
+
+    def power_cut(fd):
+        raise OSError("power cut")
+
+    monkeypatch.setattr(os, "fsync", power_cut)
+    with pytest.raises(OSError, match="power cut"):
+        write_json_atomic(path, {"x": 2, "long": "y" * 100_000})
+    assert json.loads(path.read_text()) == {"x": 1}
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["layout.json"]
+
+
+def test_text_and_bytes_round_trip(tmp_path):
+    assert write_atomic(tmp_path / "a.md", "é\n").read_text(encoding="utf-8") == "é\n"
+    assert write_atomic(tmp_path / "b.bin", b"\x00\x01").read_bytes() == b"\x00\x01"
