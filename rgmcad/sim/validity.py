@@ -430,3 +430,21 @@ class LayoutValidity:
             np.broadcast_to(boxes_b[1][None, None, :], shape + (3,)).reshape(-1, 3),
             self.tolerance / 2 + 1e-6)
         return deep.reshape(r, -1).any(axis=1)
+
+
+def layout_validity(scenario, values, parts, tolerance: float = TOLERANCE,
+                    cache: PartCache | None = None, scene: Scene | None = None) -> Validity:
+    """The :class:`Validity` of one layout (real parameter ``values`` (d,)), fast when it is
+    valid: the yes/no answer of :class:`LayoutValidity` (kept in ``cache`` for the next
+    layout of the scenario), then, for an invalid layout only, :func:`check_validity` for its
+    overlaps. ``pairs_tested`` counts the exact tests of that second pass (0 when valid)."""
+    cache = PartCache() if cache is None else cache
+    tester = cache.get(("layout validity", float(tolerance)), (scenario, *parts.values()),
+                       lambda: LayoutValidity(scenario, parts, tolerance, cache))
+    if tester(np.asarray(values, float)[None])[0]:
+        return Validity(True, (), 0)
+    if scene is None:
+        from rgmcad.scene.bodies import make_scene
+
+        scene = make_scene(scenario, np.asarray(values, float), parts)
+    return check_validity(scene, tolerance, cache=cache)
