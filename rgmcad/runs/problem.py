@@ -29,7 +29,7 @@ from rgmcad.parts.store import DEFAULT_BUILD_DIR
 from rgmcad.sim.run import Outcome
 
 __all__ = ["SimRecord", "ScenarioContext", "ScenarioProblem", "ContextPayload", "simulate_task",
-           "simulate_valid_task", "validity_task",
+           "simulate_layout_task", "validity_task",
            "scenario_digest", "event_parents", "any_joins"]
 
 
@@ -253,9 +253,11 @@ def simulate_task(context: ScenarioContext, x: np.ndarray) -> SimRecord:
     return context.simulate_one(x)
 
 
-def simulate_valid_task(context: ScenarioContext, x: np.ndarray) -> SimRecord:
-    """:func:`simulate_task` of a layout known to be valid (its validity is not tested again)."""
-    return context.simulate_one(x, known_valid=True)
+def simulate_layout_task(context: ScenarioContext, item: tuple[np.ndarray, bool]) -> SimRecord:
+    """``context.simulate_one(x, known_valid)`` for ``item = (x, known_valid)``: a layout that
+    this run already found valid is not tested again."""
+    x, known_valid = item
+    return context.simulate_one(x, known_valid=True) if known_valid else context.simulate_one(x)
 
 
 def validity_task(context: ScenarioContext, X: np.ndarray) -> np.ndarray:
