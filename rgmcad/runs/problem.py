@@ -160,7 +160,7 @@ class ScenarioContext:
         """(n,) bool: whether each row of ``X`` (n, d) is physically valid (the exact test of
         :func:`~rgmcad.sim.validity.check_validity`, run on all rows at once)."""
         if self._tester is None:
-            from rgmcad.sim.validity import LayoutValidity
+            from rgmcad.sim.layout_validity import LayoutValidity
 
             self._tester = LayoutValidity(self.scenario, self.parts, cache=self.cache)
         X = np.atleast_2d(np.asarray(X, dtype=float))

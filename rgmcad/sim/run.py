@@ -25,7 +25,8 @@ from rgmcad.sim.cache import PartCache
 from rgmcad.sim.causal import CausalGraph, EventState
 from rgmcad.sim.engine import Engine
 from rgmcad.sim.events import make_condition
-from rgmcad.sim.validity import TOLERANCE, Validity, layout_validity
+from rgmcad.sim.layout_validity import layout_validity
+from rgmcad.sim.validity import TOLERANCE, Validity
 from rgmcad.sim.world import World
 
 
