@@ -142,3 +142,58 @@ def test_a_point_deep_in_two_box_bodies_means_the_meshes_penetrate():
     assert np.all(depth[found] > validity.TOLERANCE)
     deep = depth > 2e-3
     assert deep.sum() > 50 and found[deep].all()
+
+
+@pytest.mark.parametrize("name", ["simple", "ballrun"])
+def test_one_layout_fast_path_gives_the_full_test_answer(name):
+    """What a simulation tests: valid layouts answered by the many-layout test, invalid ones
+    with the full test's overlaps."""
+    from rgmcad.runs.problem import ScenarioProblem
+    from rgmcad.scene.bodies import make_scene
+    from rgmcad.scene.design_space import values_from_vector
+    from rgmcad.sim.cache import PartCache
+    from rgmcad.sim.layout_validity import layout_validity
+
+    problem = ScenarioProblem(f"scenarios/{name}.toml")
+    scenario, parts = problem.scenario, problem.parts
+    rng = np.random.default_rng(3)
+    cache = PartCache()
+    answers = []
+    for _ in range(40):
+        values = values_from_vector(scenario, rng.random(scenario.dimension))
+        full = check_validity(make_scene(scenario, values, parts))
+        fast = layout_validity(scenario, values, parts, cache=cache)
+        assert fast.valid == full.valid
+        if not full.valid:
+            assert fast.overlaps == full.overlaps
+        answers.append(full.valid)
+    assert 0 < sum(answers) < len(answers)
+
+
+def test_a_run_tests_each_layout_once(tmp_path, monkeypatch):
+    """Layouts the run's validity test passed are simulated without a second test; a layout
+    simulated without one is tested (and an invalid one is not simulated)."""
+    import rgmcad.sim.run as run_module
+    from rgmcad.learning import LearningSettings
+    from rgmcad.runs.executor import SerialExecutor
+    from rgmcad.runs.problem import ScenarioProblem
+    from rgmcad.runs.store import RecordedProblem, RunStore, run_identity
+
+    tested = []
+    real = run_module.layout_validity
+    monkeypatch.setattr(run_module, "layout_validity",
+                        lambda *a, **k: tested.append(1) or real(*a, **k))
+    problem = ScenarioProblem("scenarios/simple.toml")
+    rng = np.random.default_rng(5)
+    X = rng.random((12, problem.dimension))
+    ok = problem.validity(X)
+    assert 0 < ok.sum() < len(X)
+    identity = run_identity("simple", "0" * 64, 0, LearningSettings())
+    with RunStore(tmp_path, identity, dimension=problem.dimension,
+                  events=list(problem.scenario.events)) as store:
+        recorded = RecordedProblem(problem, store, SerialExecutor(problem.context))
+        assert recorded.validity(X).tolist() == ok.tolist()
+        records = recorded.simulate_records(X[ok])
+        assert tested == [] and all(r.valid for r in records)
+        untested = recorded.simulate_records(X[~ok][:1])
+        assert tested == [1] and not untested[0].valid

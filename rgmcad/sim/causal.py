@@ -81,9 +81,10 @@ class CausalGraph:
 
         Runs before every physics step, so the usual case (an awake event whose condition
         does not hold and whose timeout is not reached) is handled inline."""
-        if not self.started:
+        if not self.started:  # the root and whatever it wakes are evaluated as they wake
             self.started = True
             self._wake(self.root, t)
+            return not self.awake
         conditions, woke, timeouts = self.conditions, self.woke, self.timeouts
         true_since, state = self._true_since, self.state
         # iterate over a snapshot; events woken during the sweep are evaluated when they wake
