@@ -53,6 +53,11 @@ class Worker:
             self.scenarios[path] = (scenario, self.api.load_parts(scenario))
         return self.scenarios[path]
 
+    def source(self):
+        import rgmcad
+
+        return rgmcad.__file__
+
     def prepare(self, path):
         self.load(path)
         return True
@@ -218,6 +223,7 @@ def main() -> None:
     old, new = Remote(args.base), Remote(REPO)
     rows = []
     try:
+        print(f"37a3f49: {old('source')}; now: {new('source')}", flush=True)
         for name in args.scenarios:
             rows.append(bench(name, old, new, args.base, args))
             row = rows[-1]

@@ -86,11 +86,10 @@ class CausalGraph:
             self._wake(self.root, t)
             return not self.awake
         conditions, woke, timeouts = self.conditions, self.woke, self.timeouts
-        true_since, state = self._true_since, self.state
-        # iterate over a snapshot; events woken during the sweep are evaluated when they wake
+        true_since = self._true_since
+        # over a snapshot: events woken during the sweep were evaluated as they woke, and only
+        # its own evaluation finishes an event
         for name in tuple(self.awake):
-            if state[name] is not AWAKE:
-                continue
             holds = conditions[name]()
             if holds or name in true_since or t - woke[name] > timeouts[name]:
                 self._apply(name, t, holds)
