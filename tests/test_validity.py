@@ -144,32 +144,6 @@ def test_a_point_deep_in_two_box_bodies_means_the_meshes_penetrate():
     assert deep.sum() > 50 and found[deep].all()
 
 
-@pytest.mark.parametrize("name", ["simple", "ballrun"])
-def test_one_layout_fast_path_gives_the_full_test_answer(name):
-    """What a simulation tests: valid layouts answered by the many-layout test, invalid ones
-    with the full test's overlaps."""
-    from rgmcad.runs.problem import ScenarioProblem
-    from rgmcad.scene.bodies import make_scene
-    from rgmcad.scene.design_space import values_from_vector
-    from rgmcad.sim.cache import PartCache
-    from rgmcad.sim.layout_validity import layout_validity
-
-    problem = ScenarioProblem(f"scenarios/{name}.toml")
-    scenario, parts = problem.scenario, problem.parts
-    rng = np.random.default_rng(3)
-    cache = PartCache()
-    answers = []
-    for _ in range(40):
-        values = values_from_vector(scenario, rng.random(scenario.dimension))
-        full = check_validity(make_scene(scenario, values, parts))
-        fast = layout_validity(scenario, values, parts, cache=cache)
-        assert fast.valid == full.valid
-        if not full.valid:
-            assert fast.overlaps == full.overlaps
-        answers.append(full.valid)
-    assert 0 < sum(answers) < len(answers)
-
-
 def test_a_run_tests_each_layout_once(tmp_path, monkeypatch):
     """Layouts the run's validity test passed are simulated without a second test; a layout
     simulated without one is tested (and an invalid one is not simulated)."""
@@ -180,8 +154,8 @@ def test_a_run_tests_each_layout_once(tmp_path, monkeypatch):
     from rgmcad.runs.store import RecordedProblem, RunStore, run_identity
 
     tested = []
-    real = run_module.layout_validity
-    monkeypatch.setattr(run_module, "layout_validity",
+    real = run_module.check_validity
+    monkeypatch.setattr(run_module, "check_validity",
                         lambda *a, **k: tested.append(1) or real(*a, **k))
     problem = ScenarioProblem("scenarios/simple.toml")
     rng = np.random.default_rng(5)

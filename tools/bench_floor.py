@@ -99,14 +99,11 @@ class Worker:
     def validity(self, path, values, repeat):
         scenario, parts = self.load(path)
         values = np.asarray(values, float)
-        if self.current:
-            from rgmcad.sim.layout_validity import layout_validity
+        cache = {"cache": self.api.cache} if self.current else {}
 
-            def test():
-                return layout_validity(scenario, values, parts, cache=self.api.cache).valid
-        else:
-            def test():
-                return self.api.check_validity(self.api.make_scene(scenario, values, parts)).valid
+        def test():  # the scene is built as a simulation would
+            scene = self.api.make_scene(scenario, values, parts)
+            return self.api.check_validity(scene, **cache).valid
         test()
         start = time.process_time()
         for _ in range(repeat):

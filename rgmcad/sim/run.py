@@ -25,8 +25,7 @@ from rgmcad.sim.cache import PartCache
 from rgmcad.sim.causal import CausalGraph, EventState
 from rgmcad.sim.engine import Engine
 from rgmcad.sim.events import make_condition
-from rgmcad.sim.layout_validity import layout_validity
-from rgmcad.sim.validity import TOLERANCE, Validity
+from rgmcad.sim.validity import TOLERANCE, Validity, check_validity
 from rgmcad.sim.world import World
 
 
@@ -108,7 +107,7 @@ def simulate(scenario: Scenario, values, parts: Mapping[str, BuiltPart], *,
     scene = make_scene(scenario, np.asarray(values, float), parts)
     validity = None
     if check:
-        validity = layout_validity(scenario, values, parts, tolerance, cache, scene)
+        validity = check_validity(scene, tolerance, cache=cache)
         if not validity.valid:
             events = tuple(EventRecord(n, EventState.ASLEEP, None) for n in scenario.events)
             elapsed = time.perf_counter() - start
