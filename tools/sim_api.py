@@ -13,14 +13,13 @@ def load_api() -> SimpleNamespace:
         from rgmcad.sim.run import simulate
         from rgmcad.sim.validity import check_validity
         layout = "current"
-    except ImportError:
-        from rgmcad.design_space import values_from_mapping, values_from_vector
+    except ImportError:  # the flat modules of 37a3f49 (rgmcad.scene was one module then)
+        from rgmcad.design_space import values_from_mapping, values_from_vector  # noqa: I001
         from rgmcad.problem import ScenarioProblem
         from rgmcad.scenario import load_scenario
+        from rgmcad.scene import load_parts, make_scene
         from rgmcad.simulate import simulate
         from rgmcad.validity import check_validity
-
-        from rgmcad.scene import load_parts, make_scene
         layout = "37a3f49"
 
     def valid(scenario, values, parts) -> bool:
