@@ -91,8 +91,9 @@ class Engine:
         self._holder = None  # weak reference to the live world built in this engine
         self.renderer = renderer
         if not renderer:  # the static plugin's id, then unloaded: no visual shapes are made
-            pb.unloadPlugin(pb.loadPlugin(_RENDERER, physicsClientId=self.cid),
-                            physicsClientId=self.cid)
+            plugin = pb.loadPlugin(_RENDERER, physicsClientId=self.cid)
+            if plugin >= 0:
+                pb.unloadPlugin(plugin, physicsClientId=self.cid)
 
     def __getattr__(self, name: str):
         function = getattr(pb, name)
