@@ -123,3 +123,23 @@ def test_always_with_hold_ignores_shorter_blips():
     assert graph.state["a"] == SUCCESS and graph.time["a"] > 1.0
     graph, _ = run(quiet, {"a": (0.3, 0.8)})  # true for 0.5 s: fails once it lasted 0.2 s
     assert graph.state["a"] == FAILURE and abs(graph.time["a"] - 0.5) < 2 * DT
+
+
+def test_each_awake_condition_is_read_once_per_step():
+    """Conditions query the engine: the graph reads each awake one once per update."""
+    reads = {"a": 0, "b": 0}
+
+    def condition(name, true_at):
+        def read():
+            reads[name] += 1
+            return reads[name] >= true_at
+        return read
+
+    specs = [spec("a"), spec("b", after=["a"])]
+    graph = CausalGraph({s.name: s for s in specs},
+                        {"a": condition("a", 5), "b": condition("b", 3)}, 2.0)
+    updates = 0
+    while not graph.update(updates * DT):
+        updates += 1
+    assert reads == {"a": 5, "b": 3} and updates == 6  # b woke at a's 5th read
+    assert graph.time == {"a": 4 * DT, "b": 6 * DT}

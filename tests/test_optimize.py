@@ -247,7 +247,7 @@ def test_batches_in_flight_are_stored_in_order_and_validity_is_tested_here_meanw
         first = recorded.submit(np.array([[0.2, 0.3], [0.6, 0.7]]))
         second = recorded.submit(np.array([[0.6, 0.7], [0.1, 0.95]]))  # one vector again
         assert recorded.validity(np.array([[0.5, 0.5], [0.95, 0.5]])).tolist() == [True, False]
-        assert pool.calls == ["simulate_task", "simulate_task"]  # tested here, not in the pool
+        assert pool.calls == ["simulate_layout_task"] * 2  # tested here, not in the pool
         assert [lab.success for lab in first()] == [False, True]
         assert [lab.success for lab in second()] == [True, True]
         recorded.validity(np.array([[0.5, 0.5], [0.95, 0.5]]))

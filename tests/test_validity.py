@@ -94,7 +94,7 @@ def test_many_layouts_at_once_give_the_answers_of_one_scene_at_a_time(name):
     from rgmcad.runs.problem import ScenarioProblem
     from rgmcad.scene.bodies import make_scene
     from rgmcad.scene.design_space import bounds, world_poses, world_poses_many
-    from rgmcad.sim.validity import LayoutValidity
+    from rgmcad.sim.layout_validity import LayoutValidity
 
     problem = ScenarioProblem(f"scenarios/{name}.toml")
     scenario, parts = problem.scenario, problem.parts
@@ -114,7 +114,7 @@ def test_a_point_deep_in_two_box_bodies_means_the_meshes_penetrate():
     at least tolerance / 2 deep in both bodies, the exact test finds a penetration; and it
     finds one for every crossing deeper than 2 mm."""
     from rgmcad.geometry import pose_matrices
-    from rgmcad.sim import validity
+    from rgmcad.sim import layout_validity, validity
     from rgmcad.sim.cache import PartCache
 
     sc = tiny({"a": {**CUBE, "params": {"length": 0.2, "width": 0.03, "height": 0.004}},
@@ -123,7 +123,7 @@ def test_a_point_deep_in_two_box_bodies_means_the_meshes_penetrate():
     scene = scene_of(sc)
     a, b = scene.bodies["a"].built, scene.bodies["b"].built
     cache = PartCache()
-    boxes_a, boxes_b = validity._box_pieces(a, cache), validity._box_pieces(b, cache)
+    boxes_a, boxes_b = layout_validity._box_pieces(a, cache), layout_validity._box_pieces(b, cache)
     assert boxes_a is not None and len(boxes_b[0]) == 3  # a track is three boxes
     rng = np.random.default_rng(0)
     n = 400
@@ -133,7 +133,7 @@ def test_a_point_deep_in_two_box_bodies_means_the_meshes_penetrate():
     frames_a = pose_a[:, None] @ boxes_a[0][None]  # (n, 1, 4, 4): a plank is one box
     found = np.zeros(n, dtype=bool)
     for frame_b, half_b in zip(*boxes_b, strict=True):
-        found |= validity._boxes_share_a_deep_point(
+        found |= layout_validity._boxes_share_a_deep_point(
             frames_a[:, 0], np.broadcast_to(boxes_a[1][0], (n, 3)),
             np.broadcast_to(frame_b, (n, 4, 4)), np.broadcast_to(half_b, (n, 3)),
             validity.TOLERANCE / 2 + 1e-6)
@@ -142,3 +142,32 @@ def test_a_point_deep_in_two_box_bodies_means_the_meshes_penetrate():
     assert np.all(depth[found] > validity.TOLERANCE)
     deep = depth > 2e-3
     assert deep.sum() > 50 and found[deep].all()
+
+
+def test_a_run_tests_each_layout_once(tmp_path, monkeypatch):
+    """Layouts the run's validity test passed are simulated without a second test; a layout
+    simulated without one is tested (and an invalid one is not simulated)."""
+    import rgmcad.sim.run as run_module
+    from rgmcad.learning import LearningSettings
+    from rgmcad.runs.executor import SerialExecutor
+    from rgmcad.runs.problem import ScenarioProblem
+    from rgmcad.runs.store import RecordedProblem, RunStore, run_identity
+
+    tested = []
+    real = run_module.check_validity
+    monkeypatch.setattr(run_module, "check_validity",
+                        lambda *a, **k: tested.append(1) or real(*a, **k))
+    problem = ScenarioProblem("scenarios/simple.toml")
+    rng = np.random.default_rng(5)
+    X = rng.random((12, problem.dimension))
+    ok = problem.validity(X)
+    assert 0 < ok.sum() < len(X)
+    identity = run_identity("simple", "0" * 64, 0, LearningSettings())
+    with RunStore(tmp_path, identity, dimension=problem.dimension,
+                  events=list(problem.scenario.events)) as store:
+        recorded = RecordedProblem(problem, store, SerialExecutor(problem.context))
+        assert recorded.validity(X).tolist() == ok.tolist()
+        records = recorded.simulate_records(X[ok])
+        assert tested == [] and all(r.valid for r in records)
+        untested = recorded.simulate_records(X[~ok][:1])
+        assert tested == [1] and not untested[0].valid

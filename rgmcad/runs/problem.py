@@ -29,7 +29,7 @@ from rgmcad.parts.store import DEFAULT_BUILD_DIR
 from rgmcad.sim.run import Outcome
 
 __all__ = ["SimRecord", "ScenarioContext", "ScenarioProblem", "ContextPayload", "simulate_task",
-           "validity_task",
+           "simulate_layout_task", "validity_task",
            "scenario_digest", "event_parents", "any_joins"]
 
 
@@ -160,7 +160,7 @@ class ScenarioContext:
         """(n,) bool: whether each row of ``X`` (n, d) is physically valid (the exact test of
         :func:`~rgmcad.sim.validity.check_validity`, run on all rows at once)."""
         if self._tester is None:
-            from rgmcad.sim.validity import LayoutValidity
+            from rgmcad.sim.layout_validity import LayoutValidity
 
             self._tester = LayoutValidity(self.scenario, self.parts, cache=self.cache)
         X = np.atleast_2d(np.asarray(X, dtype=float))
@@ -174,16 +174,17 @@ class ScenarioContext:
         return check_validity(make_scene(self.scenario, self.values(x), self.parts),
                               cache=self.cache)
 
-    def simulate_one(self, x: np.ndarray) -> SimRecord:
-        """Simulate the design vector ``x`` (d,) (the validity test included)."""
+    def simulate_one(self, x: np.ndarray, known_valid: bool = False) -> SimRecord:
+        """Simulate the design vector ``x`` (d,), after the validity test unless the caller
+        already knows the layout is valid (``known_valid``: the result is the same)."""
         from rgmcad.sim.run import simulate
 
         if self._engine is None:
             from rgmcad.sim.engine import Engine
 
-            self._engine = Engine()
-        r = simulate(self.scenario, self.values(x), self.parts, engine=self._engine,
-                     cache=self.cache)
+            self._engine = Engine(renderer=False)
+        r = simulate(self.scenario, self.values(x), self.parts, check=not known_valid,
+                     engine=self._engine, cache=self.cache)
         labels = r.labels()
         events = {e.name: (labels[e.name], e.time) for e in r.events}
         return SimRecord(r.outcome is not Outcome.INVALID, r.outcome, events,
@@ -250,6 +251,13 @@ class ContextPayload:
 def simulate_task(context: ScenarioContext, x: np.ndarray) -> SimRecord:
     """``context.simulate_one(x)``: a task for :meth:`~rgmcad.runs.executor.Executor.map_context`."""
     return context.simulate_one(x)
+
+
+def simulate_layout_task(context: ScenarioContext, item: tuple[np.ndarray, bool]) -> SimRecord:
+    """``context.simulate_one(x, known_valid)`` for ``item = (x, known_valid)``: a layout that
+    this run already found valid is not tested again."""
+    x, known_valid = item
+    return context.simulate_one(x, known_valid=True) if known_valid else context.simulate_one(x)
 
 
 def validity_task(context: ScenarioContext, X: np.ndarray) -> np.ndarray:

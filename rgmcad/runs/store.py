@@ -54,7 +54,7 @@ from rgmcad.errors import RunDirectoryError
 from rgmcad.files import write_atomic, write_json_atomic
 from rgmcad.runs.executor import map_blocks, parent_only
 from rgmcad.runs.lock import DirectoryLock, LockedError
-from rgmcad.runs.problem import SimRecord, simulate_task, validity_task
+from rgmcad.runs.problem import SimRecord, simulate_layout_task, validity_task
 
 __all__ = ["RunStore", "RecordedProblem", "run_identity", "SETTINGS", "SIMULATIONS", "RESULT",
            "MODEL", "REJECTED"]
@@ -372,14 +372,18 @@ class RecordedProblem:
         self.n_replayed = 0
         self.n_simulated = 0
         self._in_flight = 0  # batches submitted and not yet waited for
+        self._valid: set[bytes] = set()  # layouts found valid here: not tested again
 
     def validity(self, X: np.ndarray) -> np.ndarray:
         # While simulations are in flight the pool is busy and this process is waiting:
         # testing here costs a millisecond, in the pool a wait for the batch ahead.
         X = np.atleast_2d(np.asarray(X, dtype=float))
         if self._in_flight or min(len(X), self.executor.workers) <= 1:
-            return np.asarray(self.problem.validity(X), dtype=bool)
-        return map_blocks(self.executor, validity_task, X)
+            ok = np.asarray(self.problem.validity(X), dtype=bool)
+        else:
+            ok = map_blocks(self.executor, validity_task, X)
+        self._valid.update(_key(x) for x in X[ok])
+        return ok
 
     def penetration(self, x: np.ndarray) -> float:
         return self.problem.penetration(x)
@@ -401,7 +405,8 @@ class RecordedProblem:
             if r is None:
                 todo.setdefault(_key(X[i]), i)
         rows = list(todo.values())
-        results = self.executor.map_context(simulate_task, [X[i] for i in rows])
+        results = self.executor.map_context(
+            simulate_layout_task, [(X[i], _key(X[i]) in self._valid) for i in rows])
         self._in_flight += 1
 
         def wait() -> list[SimRecord]:

@@ -39,7 +39,7 @@ from rgmcad.runs.problem import (
     ScenarioProblem,
     SimRecord,
     scenario_digest,
-    simulate_task,
+    simulate_layout_task,
     validity_task,
 )
 from rgmcad.runs.report import (
@@ -402,7 +402,8 @@ def evaluate_layout(
     def simulate(X):
         progress.stage("simulation", len(X))
         out = []
-        for r in executor.map_context(simulate_task, list(X)):
+        # local_robustness simulates only layouts that validity() passed: not tested again
+        for r in executor.map_context(simulate_layout_task, [(x, True) for x in X]):
             out.append(r)
             progress.simulated(r)
         return out

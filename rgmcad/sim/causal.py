@@ -77,24 +77,33 @@ class CausalGraph:
         return self.started and not self.awake
 
     def update(self, t: float) -> bool:
-        """Evaluate the awake events at time ``t`` (s). Returns True once resolved."""
-        if not self.started:
+        """Evaluate the awake events at time ``t`` (s). Returns True once resolved.
+
+        Runs before every physics step, so the usual case (an awake event whose condition
+        does not hold and whose timeout is not reached) is handled inline."""
+        if not self.started:  # the root and whatever it wakes are evaluated as they wake
             self.started = True
             self._wake(self.root, t)
-        # iterate over a snapshot; events woken during the sweep are evaluated when they wake
-        for name in list(self.awake):
-            if self.state[name] is AWAKE:
-                self._evaluate(name, t)
+            return not self.awake
+        conditions, woke, timeouts = self.conditions, self.woke, self.timeouts
+        true_since = self._true_since
+        # over a snapshot: events woken during the sweep were evaluated as they woke, and only
+        # its own evaluation finishes an event
+        for name in tuple(self.awake):
+            holds = conditions[name]()
+            if holds or name in true_since or t - woke[name] > timeouts[name]:
+                self._apply(name, t, holds)
         return not self.awake
 
     def _wake(self, name: str, t: float) -> None:
         self.state[name] = AWAKE
         self.woke[name] = t
         self.awake.append(name)
-        self._evaluate(name, t)
+        self._apply(name, t, self.conditions[name]())
 
-    def _evaluate(self, name: str, t: float) -> None:
-        if self.conditions[name]():
+    def _apply(self, name: str, t: float, holds: bool) -> None:
+        """An awake event's step, its condition found to hold or not at ``t``."""
+        if holds:
             since = self._true_since.setdefault(name, t)
             if t - since >= self.holds[name]:
                 if name in self.never:

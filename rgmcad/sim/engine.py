@@ -57,6 +57,10 @@ def _import_pybullet():
 pb = _import_pybullet()
 
 
+_RENDERER = "tinyRendererPlugin"
+"""pybullet's software renderer, a plugin linked into every DIRECT server."""
+
+
 def _disconnect(cid: int) -> None:
     if pb.isConnected(cid):
         pb.disconnect(cid)
@@ -68,16 +72,28 @@ class Engine:
     Disconnected by :meth:`close` (or ``with Engine() as engine:``), else when it is
     garbage-collected.
 
+    Parameters
+    ----------
+    renderer : keep pybullet's built-in renderer (``getCameraImage``). An engine that only
+        simulates goes without: the renderer makes a visual mesh of every collision shape as
+        bodies are created, most of the cost of building a world (an infinite plane alone
+        took 3 ms); physics does not depend on it.
+
     Attributes
     ----------
     cid : int
         The client id.
     """
 
-    def __init__(self):
+    def __init__(self, renderer: bool = True):
         self.cid = pb.connect(pb.DIRECT)
         self._close = weakref.finalize(self, _disconnect, self.cid)
         self._holder = None  # weak reference to the live world built in this engine
+        self.renderer = renderer
+        if not renderer:  # the static plugin's id, then unloaded: no visual shapes are made
+            plugin = pb.loadPlugin(_RENDERER, physicsClientId=self.cid)
+            if plugin >= 0:
+                pb.unloadPlugin(plugin, physicsClientId=self.cid)
 
     def __getattr__(self, name: str):
         function = getattr(pb, name)

@@ -10,8 +10,9 @@ Outcomes and event states are enums whose values are the words written to result
 
 from __future__ import annotations
 
+import itertools
 import time
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from enum import StrEnum
 
@@ -49,7 +50,7 @@ class SimulationResult:
     events: tuple[EventRecord, ...]  # in the scenario's event order
     sim_time: float  # simulated seconds
     wall_time: float  # seconds, validity test included
-    step_time: float = 0.0  # seconds spent inside the physics steps
+    steps: int = 0  # physics steps taken
     validity: Validity | None = None
     validity_time: float = 0.0  # seconds in the validity test
     build_time: float = 0.0  # seconds building the world and the event conditions
@@ -80,22 +81,27 @@ class SimulationResult:
 _LABELS = {EventState.SUCCESS: True, EventState.FAILURE: False}
 
 Observer = Callable[[World, float], None]
+StepHook = Callable[[World, float], None]
 
 
 def simulate(scenario: Scenario, values, parts: Mapping[str, BuiltPart], *,
              check: bool = True, tolerance: float = TOLERANCE,
              observer: Observer | None = None, observe_every: int = 1,
-             engine: Engine | None = None, cache: PartCache | None = None) -> SimulationResult:
+             engine: Engine | None = None, cache: PartCache | None = None,
+             hooks: Sequence[StepHook] = ()) -> SimulationResult:
     """Simulate the layout with real parameter ``values`` (d,).
 
     Parameters
     ----------
     parts : built parts by object name (:func:`rgmcad.scene.bodies.load_parts`).
-    check : run the validity test first (an invalid layout is not simulated).
+    check : run the validity test first (an invalid layout is not simulated); False for a
+        layout already known valid.
     observer : called as ``observer(world, t)`` every ``observe_every`` steps and at the end
         (for rendering; leave None for speed).
     engine, cache : reused by a caller that simulates many layouts (see
         :class:`~rgmcad.sim.world.World`); None: the simulation's own.
+    hooks : called as ``hook(world, t)`` before every physics step, after the events
+        (recording, constraints solved between steps); none costs nothing.
     """
     start = time.perf_counter()
     scene = make_scene(scenario, np.asarray(values, float), parts)
@@ -105,37 +111,62 @@ def simulate(scenario: Scenario, values, parts: Mapping[str, BuiltPart], *,
         if not validity.valid:
             events = tuple(EventRecord(n, EventState.ASLEEP, None) for n in scenario.events)
             elapsed = time.perf_counter() - start
-            return SimulationResult(Outcome.INVALID, events, 0.0, elapsed, 0.0, validity,
-                                    elapsed)
+            return SimulationResult(Outcome.INVALID, events, 0.0, elapsed, validity=validity,
+                                    validity_time=elapsed)
     built_at = time.perf_counter()
     settings = scenario.settings
-    with World(scene, settings, engine, cache) as world:
-        graph = CausalGraph(
-            scenario.events,
-            {name: make_condition(spec, world) for name, spec in scenario.events.items()},
-            settings.event_timeout,
-        )
-        ready_at = time.perf_counter()
-        dt = settings.timestep
-        n_steps = int(round(settings.duration / dt))
-        step_time = 0.0
-        t = 0.0
-        clock = time.perf_counter
-        step = world.step
-        for i in range(n_steps + 1):
-            t = i * dt
-            if graph.update(t):
-                break
-            if observer is not None and i % observe_every == 0:
+    if observer is not None:
+        hooks = (*hooks, _every(observer, observe_every))
+    if engine is None and observer is None:
+        engine = own_engine = Engine(renderer=False)
+    else:
+        own_engine = None
+    try:
+        with World(scene, settings, engine, cache) as world:
+            graph = CausalGraph(
+                scenario.events,
+                {name: make_condition(spec, world) for name, spec in scenario.events.items()},
+                settings.event_timeout,
+            )
+            ready_at = time.perf_counter()
+            t, steps = _run(world, graph, settings, tuple(hooks))
+            if observer is not None:
                 observer(world, t)
-            if i == n_steps:
-                break
-            t0 = clock()
-            step()
-            step_time += clock() - t0
-        if observer is not None:
-            observer(world, t)
+    finally:
+        if own_engine is not None:
+            own_engine.close()
     outcome = Outcome.SUCCESS if graph.resolved and graph.succeeded() else Outcome.FAILURE
     events = tuple(EventRecord(n, graph.state[n], graph.time[n]) for n in scenario.events)
-    return SimulationResult(outcome, events, t, clock() - start, step_time, validity,
+    return SimulationResult(outcome, events, t, time.perf_counter() - start, steps, validity,
                             built_at - start, ready_at - built_at)
+
+
+def _every(observer: Observer, every: int) -> StepHook:
+    """A hook calling ``observer`` before steps 0, every, 2 every, ..."""
+    calls = itertools.count()
+    every = max(int(every), 1)
+
+    def hook(world, t):
+        if next(calls) % every == 0:
+            observer(world, t)
+
+    return hook
+
+
+def _run(world: World, graph: CausalGraph, settings, hooks: tuple) -> tuple[float, int]:
+    """The step loop: at ``t = i * dt`` the awake events, then the hooks, then a physics
+    step; until the graph is resolved or the duration is over. Returns (t, steps taken)."""
+    dt = settings.timestep
+    n_steps = int(round(settings.duration / dt))
+    update, step = graph.update, world.step
+    t = 0.0
+    for i in range(n_steps + 1):
+        t = i * dt
+        if update(t):
+            return t, i
+        for hook in hooks:
+            hook(world, t)
+        if i == n_steps:
+            break
+        step()
+    return t, n_steps
