@@ -17,10 +17,9 @@ from rgmcad.cli.common import (
     parts_dir_arg,
     say,
 )
+from rgmcad.cli.progress import SimulationBar
 
 __all__ = ["configure", "run"]
-
-
 
 
 def configure(p: argparse.ArgumentParser) -> None:
@@ -41,44 +40,6 @@ def configure(p: argparse.ArgumentParser) -> None:
     p.add_argument("--json", action="store_true", help="print one JSON summary on stdout")
 
 
-class _Bar:
-    """Progress on stderr: stage, simulations (new and replayed), successes. The bar appears
-    at the first report, so a finished run shows none."""
-
-    def __init__(self):
-        self.bar = None
-        self.successes = self.replayed = 0
-
-    def _start(self):
-        if self.bar is None:
-            from tqdm import tqdm
-
-            self.bar = tqdm(desc="exploration", unit="sim", file=sys.stderr, mininterval=0.5,
-                            dynamic_ncols=True)
-        return self.bar
-
-    def simulated(self, record, replayed: bool = False) -> None:
-        from rgmcad.sim.run import Outcome
-
-        bar = self._start()
-        self.successes += record.outcome is Outcome.SUCCESS
-        self.replayed += replayed
-        bar.set_postfix(successes=self.successes, replayed=self.replayed, refresh=False)
-        bar.update(1)
-
-    def stage(self, name: str, total: int | None = None) -> None:
-        bar = self._start()
-        if name != bar.desc:
-            bar.set_description(name)
-
-    def tested(self, n: int) -> None:
-        pass
-
-    def close(self) -> None:
-        if self.bar is not None:
-            self.bar.close()
-
-
 def run(args) -> int:
     from rgmcad.cli.paths import output_dir
     from rgmcad.runs.checks import MAX_SEED, check_range, check_workers
@@ -89,7 +50,7 @@ def run(args) -> int:
     if args.run_dir is not None:  # and again, trying, when the run store opens it
         output_dir(args.run_dir, "--run")
     note_first_build(args)
-    bar = _Bar()
+    bar = SimulationBar(enabled=not args.quiet)
     try:
         done = optimize_scenario(args.scenario, seed=args.seed, budget=args.budget,
                                  run_dir=args.run_dir, workers=args.workers,
@@ -101,6 +62,9 @@ def run(args) -> int:
     if done.finished_before:
         sys.stderr.write(f"{done.run_dir}: finished already; showing its result\n")
     show(done.summary, args.json, done.wall_time if done.finished_before else None)
+    if not args.json:
+        layout = Path(done.summary["layout"])
+        say(f"next: rgmcad simulate {args.scenario_given} --layout {layout}")
     return 0 if done.verified else 1
 
 
