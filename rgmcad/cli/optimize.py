@@ -17,6 +17,7 @@ from rgmcad.cli.common import (
     parts_dir_arg,
     say,
 )
+from rgmcad.cli.export import RUN_FILES, export_files
 from rgmcad.cli.progress import SimulationBar
 
 __all__ = ["configure", "run"]
@@ -61,6 +62,8 @@ def run(args) -> int:
         bar.close()
     if done.finished_before:
         sys.stderr.write(f"{done.run_dir}: finished already; showing its result\n")
+    if not all((done.run_dir / name).exists() for name in RUN_FILES):  # the layout as CAD
+        export_files(args, done.summary["layout"], None, [done.run_dir / n for n in RUN_FILES])
     show(done.summary, args.json, done.wall_time if done.finished_before else None)
     if not args.json:
         layout = Path(done.summary["layout"])
@@ -89,4 +92,5 @@ def show(summary: dict, as_json: bool, wall_time: float | None = None) -> None:
         k = 1.0 if unit == "deg" else 1000.0
         say(f"  {name:24s} {summary['values'][name] * k:9.2f} {unit:3s}  "
             f"-{down * k:.2f} / +{up * k:.2f}")
-    say(f"report: {Path(summary['run']) / 'report.md'}")
+    say(f"report: {Path(summary['run']) / 'report.md'}; the layout as CAD: "
+        f"{', '.join(str(Path(summary['run']) / n) for n in RUN_FILES)}")

@@ -1,4 +1,5 @@
-"""``rgmcad simulate``: simulate one layout, print its event timeline (or JSON), save a video."""
+"""``rgmcad simulate``: simulate one layout, print its event timeline (or JSON), save a video.
+Exit status 0 when the layout succeeds, 1 when it fails or is invalid (2: bad input)."""
 
 from __future__ import annotations
 
@@ -67,7 +68,7 @@ def run(args) -> int:
         if args.video:
             out["video"] = args.video
         say(json.dumps(out))
-        return 0
+        return 0 if result.outcome is Outcome.SUCCESS else 1
     say(f"{scenario.name}, layout {name}")
     if result.outcome is Outcome.INVALID:
         for o in result.validity.overlaps:
@@ -80,4 +81,4 @@ def run(args) -> int:
         f"{result.sim_time:.3f} s simulated in {result.wall_time:.2f} s)")
     if args.video:
         say(f"video: {args.video}")
-    return 0
+    return 0 if result.outcome is Outcome.SUCCESS else 1

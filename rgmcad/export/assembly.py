@@ -10,6 +10,7 @@ the true geometry. Infinite planes (the floor, a board) have no solid and are le
 from __future__ import annotations
 
 import logging
+import os
 from pathlib import Path
 
 import numpy as np
@@ -64,7 +65,7 @@ def export_layout(scenario, scene: Scene, path: Path) -> Path:
     """Write ``scene`` (a posed layout of ``scenario``) as one assembly to ``path``: STEP in
     millimetres for ``.step``/``.stp``, glTF binary (metres, as glTF wants) for ``.glb``.
 
-    Returns the path written.
+    Returns the path written. The file appears complete or not at all.
     """
     import cadquery as cq
 
@@ -77,9 +78,11 @@ def export_layout(scenario, scene: Scene, path: Path) -> Path:
         body = scene.bodies[name]
         colour = cq.Color(*(_STATIC if body.static else _MOVING))
         assembly.add(solid, name=name, loc=_location(body.pose), color=colour)
+    partial = path.with_name(f".{path.stem}.partial{suffix}")  # renamed when complete
     if suffix == ".glb":
-        assembly.export(str(path), tolerance=1e-4, angularTolerance=0.2)
+        assembly.export(str(partial), tolerance=1e-4, angularTolerance=0.2)
     else:
-        assembly.export(str(path), exportType="STEP", unit="M", outputUnit="MM")
+        assembly.export(str(partial), exportType="STEP", unit="M", outputUnit="MM")
+    os.replace(partial, path)
     log.info("exported %d bodies to %s", len(assembly.children), path)
     return path
