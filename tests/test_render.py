@@ -115,7 +115,7 @@ def _seconds(mp4) -> float:
 
 def test_video_is_slowed_down_and_shows_time_and_events_as_they_succeed(tmp_path, capsys):
     slow, real, gif = tmp_path / "slow.mp4", tmp_path / "real.mp4", tmp_path / "slow.gif"
-    size = ["--width", "240", "--height", "180"]
+    size = ["--width", "160", "--height", "120"]
     assert main(["simulate", SIMPLE, "--video", str(slow), *size, "--json"]) == 0
     result = json.loads(capsys.readouterr().out)
     assert main(["simulate", SIMPLE, "--video", str(real), *size, "--speed", "1"]) == 0
