@@ -4,9 +4,10 @@ Rendering is a view of the scene, apart from the simulation: a :class:`Renderer`
 engine of its own with only the parts' visual meshes (no physics body, so nothing to fight
 over depth with), a floor and boards drawn as finite slabs, and a camera that frames the
 layout. It draws any set of poses (a scene at rest, or a world's bodies while it runs, through
-:func:`~rgmcad.sim.run.simulate`'s ``observer`` hook). Pictures are drawn at twice their size
-and reduced (smooth edges), smooth-shaded within curved faces and flat across sharp edges,
-on a white background; a scale bar and, on request, the parts' names are drawn over them.
+:func:`~rgmcad.sim.run.simulate`'s ``observer`` hook), smooth-shaded within curved faces and
+flat across sharp edges, on a white background; stills are drawn at twice their size and
+reduced (smooth edges; video frames are not, for speed). A scale bar and, on request, the
+parts' names are drawn over them.
 Videos are slowed down (a quarter of real time by default: a domino falls in a tenth of a
 second) and show the simulated time and each event as it succeeds or fails.
 """
@@ -60,15 +61,17 @@ class Renderer:
     scene : the layout (its poses place the camera and the floor).
     width, height : pixels of a picture.
     runs : object name -> its domino run's name (the dominoes of a run share a colour).
+    supersample : draw at twice the size and reduce (smooth edges; four times the cost, so
+        videos leave it out).
     """
 
     def __init__(self, scene: Scene, width: int = 640, height: int = 480,
-                 runs: Mapping[str, str] | None = None):
+                 runs: Mapping[str, str] | None = None, supersample: bool = True):
         if not (1 <= width <= MAX_SIDE and 1 <= height <= MAX_SIDE):  # pybullet would abort
             raise ValueError(f"picture size {width} x {height}: sides of 1 to {MAX_SIDE} pixels")
         self.scene = scene
         self.width, self.height = width, height
-        self.scale = 2 if max(width, height) <= SUPERSAMPLE_UP_TO else 1
+        self.scale = 2 if supersample and max(width, height) <= SUPERSAMPLE_UP_TO else 1
         self.engine = Engine()
         self.ghosts: dict[str, int] = {}
         run_colours: dict[str, tuple] = {}
@@ -84,7 +87,7 @@ class Renderer:
                 pb.GEOM_MESH, vertices=v.tolist(), indices=f.ravel().tolist(),
                 normals=n.tolist(), rgbaColor=colour, specularColor=[0.15, 0.15, 0.15])
             self.ghosts[body.name] = self.engine.createMultiBody(0, -1, shape)
-        points = np.vstack([b.world_vertices() for b in solid])
+        points = np.vstack([b.world_vertices() for b in solid] or [np.zeros((1, 3))])
         self.lo, self.hi = points.min(axis=0), points.max(axis=0)
         for body in scene.bodies.values():
             if body.plane:
@@ -193,8 +196,10 @@ def scale_bar(renderer: Renderer, draw, text_size: int) -> tuple[float, float]:
     return float(length), float(x1 - x0)
 
 
-def labels(renderer: Renderer, scenario, draw, text_size: int) -> None:
-    """Each object's name beside it (a domino run's once, at its first domino)."""
+def labels(renderer: Renderer, scenario, draw, text_size: int,
+           poses: Mapping[str, np.ndarray] | None = None) -> None:
+    """Each object's name beside it (a domino run's once, at its first domino), the bodies
+    at ``poses`` (default: at rest)."""
     font = _font(text_size)
     done, taken = set(), []
     for body in renderer.scene.bodies.values():
@@ -205,7 +210,8 @@ def labels(renderer: Renderer, scenario, draw, text_size: int) -> None:
         if name in done:
             continue
         done.add(name)
-        point = body.pose[:3, :3] @ body.built.centre_of_mass + body.pose[:3, 3]
+        pose = body.pose if poses is None else poses[body.name]
+        point = pose[:3, :3] @ body.built.centre_of_mass + pose[:3, 3]
         x, y = renderer.project(point[None])[0]
         tx, ty = x + 8, y - text_size - 8
         box = draw.textbbox((tx, ty), name, font=font)
@@ -300,11 +306,13 @@ def record_video(scenario, values, parts, path: Path, fps: float, width: int, he
     from rgmcad.scene.bodies import make_scene
     from rgmcad.sim.run import simulate
 
-    renderer = Renderer(make_scene(scenario, values, parts), width, height, _runs(scenario))
-    frames: list[tuple[float, np.ndarray]] = []
+    renderer = Renderer(make_scene(scenario, values, parts), width, height, _runs(scenario),
+                        supersample=False)
+    frames: list[tuple] = []
 
     def observer(world, t):
-        frames.append((t, renderer.image({n: world.pose(n) for n in renderer.ghosts})))
+        poses = {n: world.pose(n) for n in renderer.ghosts}
+        frames.append((t, renderer.image(poses), poses if show_labels else None))
 
     every = _every(scenario.settings, fps, speed)
     fps = speed / (every * scenario.settings.timestep)  # a whole number of steps a frame
@@ -316,19 +324,20 @@ def record_video(scenario, values, parts, path: Path, fps: float, width: int, he
         return result
     size = max(height // 28, 10)
     out = []
-    for i, (t, image) in enumerate(frames):
+    for i, (t, image, poses) in enumerate(frames):
         final = i == len(frames) - 1
 
-        def draw(d, t=t, final=final):
+        def draw(d, t=t, final=final, poses=poses):
             _events_overlay(d, result.events, t, final, size, width)
             scale_bar(renderer, d, size)
             if show_labels:
-                labels(renderer, scenario, d, size)
+                labels(renderer, scenario, d, size, poses)
             d.text((size // 2, height - 1.3 * size), f"{speed:g}x", fill=(90, 90, 90),
                    font=_font(size))
 
         out.append(overlay(image, draw))
-    out += [out[-1]] * int(HOLD_END * fps)
+        frames[i] = (t, None, None)  # one copy of each frame in memory at a time
+    out += [out[-1]] * int(HOLD_END * fps)  # the same array: no memory
     save_video(out, path, fps)
     return result
 
