@@ -171,6 +171,9 @@ def test_choices_are_taken_in_any_case(tmp_path, capsys):
     (["simulate", SIMPLE, "--lyout", "solved"], "did you mean --layout?"),
     (["template", SIMPLE, "--out", "t", "--paper", "a5"], None),
     (["render", SIMPLE, "--out", "x.png", "--widht", "10"], "did you mean --width?"),
+    (["--buld-dir", "x", "check", SIMPLE], "did you mean --build-dir?"),
+    (["EXPORT", SIMPLE], "did you mean export?"),
+    (["build", "part"], "did you mean parts?"),
 ])
 def test_unknown_words_get_one_line_with_the_closest_valid_one(args, suggestion, capsys):
     assert main(args) == 2

@@ -7,13 +7,15 @@ from __future__ import annotations
 import argparse
 import difflib
 import re
+import sys
 
 from rgmcad.errors import UsageError
 
 
 def _suggest(word: str, choices) -> str:
-    close = difflib.get_close_matches(word, list(choices), n=1, cutoff=0.6)
-    return f"; did you mean {close[0]}?" if close else ""
+    by_lower = {c.lower(): c for c in choices}
+    close = difflib.get_close_matches(word.lower(), list(by_lower), n=1, cutoff=0.6)
+    return f"; did you mean {by_lower[close[0]]}?" if close else ""
 
 
 def _any_case(choices: tuple[str, ...]):
@@ -51,6 +53,7 @@ class Parser(argparse.ArgumentParser):
         return [s for a in self._actions for s in a.option_strings]
 
     def parse_args(self, args=None, namespace=None):
+        self._unknown_before_command(sys.argv[1:] if args is None else list(args))
         args, extra = self.parse_known_args(args, namespace)
         if extra:  # named with the (sub-)command they were given to
             words = [w for w in (getattr(args, "command", None),
@@ -63,6 +66,17 @@ class Parser(argparse.ArgumentParser):
             Parser(prog=" ".join(["rgmcad", *words])).error(
                 f"unrecognized arguments: {' '.join(extra)}{hint}")
         return args
+
+    def _unknown_before_command(self, words: list[str]) -> None:
+        """An unknown option before the command would make its value read as the command
+        (``rgmcad --buld-dir x check``: "invalid choice: 'x'"): name the option instead."""
+        known = self.flags()
+        for word in words:
+            if not word.startswith("-"):
+                return
+            flag = word.split("=")[0]
+            if word.startswith("--") and not any(k.startswith(flag) for k in known):
+                self.error(f"unrecognized arguments: {flag}{_suggest(flag, known)}")
 
     commands: dict[str, Parser] = {}
 
