@@ -44,7 +44,7 @@ def configure(p: argparse.ArgumentParser) -> None:
 def run(args) -> int:
     from rgmcad.cli.paths import output_dir
     from rgmcad.runs.checks import MAX_SEED, check_range, check_workers
-    from rgmcad.runs.workflow import optimize_scenario
+    from rgmcad.runs.workflow import LAYOUT_FILE, optimize_scenario
 
     check_range(args.seed, 0, MAX_SEED, "--seed", "a seed")
     check_workers(args.workers)
@@ -60,13 +60,13 @@ def run(args) -> int:
                                  batch=args.batch)
     finally:
         bar.close()
-    if done.finished_before:
+    if done.finished_before and not args.quiet:
         sys.stderr.write(f"{done.run_dir}: finished already; showing its result\n")
+    layout = done.run_dir / LAYOUT_FILE  # where the run is now, not where it was made
     if not all((done.run_dir / name).exists() for name in RUN_FILES):  # the layout as CAD
-        export_files(args, done.summary["layout"], None, [done.run_dir / n for n in RUN_FILES])
+        export_files(args, str(layout), None, [done.run_dir / n for n in RUN_FILES])
     show(done.summary, args.json, done.wall_time if done.finished_before else None)
     if not args.json:
-        layout = Path(done.summary["layout"])
         say(f"next: rgmcad simulate {args.scenario_given} --layout {layout}")
     return 0 if done.verified else 1
 
