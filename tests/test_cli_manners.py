@@ -191,6 +191,12 @@ def test_shell_completion_script_names_the_commands_and_options(capsys):
     assert done.returncode == 0, done.stderr  # valid bash
 
 
+def test_a_closed_pipe_ends_quietly(tmp_path):
+    done = subprocess.run(f"{shlex.quote(sys.executable)} -m rgmcad.cli --print-completion zsh"
+                          " | head -c 10", shell=True, capture_output=True, text=True)
+    assert len(done.stdout) == 10 and "Traceback" not in done.stderr, done.stderr
+
+
 # --- the part cache, shared across working directories ----------------------------------------
 
 def test_parts_built_in_one_folder_are_reused_from_another(tmp_path):
