@@ -12,11 +12,12 @@ from __future__ import annotations
 import argparse
 import importlib
 import logging
+import os
 import sys
 
-from rgmcad.cli.paths import output_dir
-from rgmcad.errors import RgmcadError, UsageError
-from rgmcad.parts.store import DEFAULT_BUILD_DIR
+from rgmcad.cli.parser import Parser, add_global_options
+from rgmcad.cli.paths import default_build_dir, output_dir
+from rgmcad.errors import RgmcadError
 
 COMMANDS: dict[str, tuple[str, str]] = {
     "simulate": ("simulate", "simulate one layout and print the event timeline"),
@@ -33,36 +34,23 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "evaluate": ("evaluate", "measure a layout's local and global robustness by simulation"),
     "benchmark": ("benchmark", "compare our method with the paper's baselines and CMA-ES "
                   "(a table like Table 1, resumable)"),
+    "export": ("export", "write a posed layout as one CAD assembly (STEP in mm, or GLB)"),
 }
 """Command -> (module of rgmcad.cli, help). Multi-word commands are sub-commands."""
 
 
-class Parser(argparse.ArgumentParser):
-    """An argument parser whose errors (unknown flag, missing or bad value, bad choice) are
-    one :class:`UsageError` line, not the usage text; sub-parsers are of this class too."""
-
-    def error(self, message: str):
-        command = self.prog.removeprefix("rgmcad").strip()
-        raise UsageError(command, "", f"{' '.join(message.split())} (see {self.prog} --help)")
-
-    def parse_args(self, args=None, namespace=None):
-        args, extra = self.parse_known_args(args, namespace)
-        if extra:  # named with the (sub-)command they were given to
-            words = [w for w in (getattr(args, "command", None),
-                                 getattr(args, "subcommand", None)) if w]
-            Parser(prog=" ".join(["rgmcad", *words])).error(
-                f"unrecognized arguments: {' '.join(extra)}")
-        return args
-
-
 def build_parser() -> argparse.ArgumentParser:
+    import shtab
+
+    from rgmcad import __version__
+
     parser = Parser(prog="rgmcad", description="Design chain-reaction "
                     "contraptions that work when built by hand.")
-    parser.add_argument("--build-dir", default=str(DEFAULT_BUILD_DIR),
-                        help=f"where built parts are cached (default: {DEFAULT_BUILD_DIR})")
-    parser.add_argument("--parts", metavar="DIR", default=None,
-                        help="the folder of part families to use instead of the shipped ones; "
-                        "its Python files are imported (run), like installing a package")
+    parser.add_argument("--version", action="version", version=f"rgmcad {__version__}")
+    shtab.add_argument_to(parser, "--print-completion", help="print a shell completion "
+                          "script (bash, zsh or tcsh) on stdout")
+    add_global_options(parser, {"build_dir": None, "parts": None, "verbose": 0, "quiet": 0})
+    parser.commands = {}
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     groups: dict[str, argparse._SubParsersAction] = {}
     for name, (module_name, help_text) in COMMANDS.items():
@@ -78,6 +66,8 @@ def build_parser() -> argparse.ArgumentParser:
         # command modules import the library inside ``run``: importing them all is cheap
         module = importlib.import_module(f"rgmcad.cli.{module_name}")
         module.configure(p)
+        add_global_options(p, None)
+        parser.commands[name] = p
         p.set_defaults(run=module.run, uses_build_dir=getattr(module, "USES_BUILD_DIR", True))
     return parser
 
@@ -87,13 +77,18 @@ def main(argv: list[str] | None = None) -> int:
     try:
         try:
             args = build_parser().parse_args(argv)
-        except SystemExit as exc:  # --help
+        except SystemExit as exc:  # --help, --version
             return exc.code if isinstance(exc.code, int) else 0
+        level = logging.WARNING + 10 * (args.quiet - args.verbose)
+        logging.getLogger().setLevel(min(max(level, logging.DEBUG), logging.CRITICAL))
+        if args.build_dir is None:
+            args.build_dir = str(default_build_dir())
         if args.uses_build_dir:  # a folder this command may write: checked before the work
             output_dir(args.build_dir, "--build-dir", writable=False)
         if hasattr(args, "scenario"):
             from rgmcad.shipped import scenario_path
 
+            args.scenario_given = args.scenario  # as the user wrote it, for what we print
             args.scenario = str(scenario_path(args.scenario))
         return args.run(args)
     except RgmcadError as exc:
@@ -102,6 +97,9 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         print("rgmcad: interrupted", file=sys.stderr)
         return 130
+    except BrokenPipeError:  # whoever read stdout stopped (`rgmcad ... | head`): no traceback
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 141
 
 
 if __name__ == "__main__":

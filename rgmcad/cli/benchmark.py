@@ -22,7 +22,7 @@ __all__ = ["configure", "run"]
 def _methods(text: str) -> tuple[str, ...]:
     from rgmcad.runs.benchmark import METHODS
 
-    names = tuple(w.strip() for w in text.split(",") if w.strip())
+    names = tuple(w.strip().lower() for w in text.split(",") if w.strip())
     bad = [n for n in names if n not in METHODS]
     if bad or not names or len(set(names)) != len(names):
         raise argparse.ArgumentTypeError(f"{text!r}: expected distinct names among "

@@ -31,7 +31,8 @@ def run(args) -> int:
                      files=("manifest.json",))
     paths = [scenario_path(p) for p in args.scenarios] or list(shipped_scenarios().values())
     scenarios = [load_scenario(p, parts_dir=parts_dir_arg(args)) for p in paths]
-    bar = tqdm(total=None, unit="part", desc="building parts", file=sys.stderr)
+    bar = tqdm(total=None, unit="part", desc="building parts", file=sys.stderr,
+               disable=bool(args.quiet))
     counts = {"built": 0, "cached": 0}
 
     def progress(done, total, pid, cached):

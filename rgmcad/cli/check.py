@@ -1,8 +1,8 @@
-"""``rgmcad check``: validate a scenario file and summarise it."""
+"""``rgmcad check``: validate a scenario file and summarise it. Exit status 1 when a named
+layout is invalid (parts overlap) or outside the design space, naming the parameter and by
+how much (2: a bad scenario file)."""
 
 from __future__ import annotations
-
-import numpy as np
 
 from rgmcad.cli.common import add_scenario_arg, load_parts_of, load_scenario_arg, print_table, say
 
@@ -13,7 +13,7 @@ def configure(p) -> None:
 
 def run(args) -> int:
     from rgmcad.scene.bodies import make_scene
-    from rgmcad.scene.design_space import values_from_mapping, vector_from_values
+    from rgmcad.scene.design_space import values_from_mapping
     from rgmcad.sim.validity import check_validity
 
     scenario = load_scenario_arg(args)
@@ -44,15 +44,28 @@ def run(args) -> int:
                  "timeout (s)"))
     parts = load_parts_of(scenario, args)
     say("\nlayouts:")
+    bad = 0
     for name, mapping in scenario.layouts.items():
         values = values_from_mapping(scenario, mapping)
-        vec = vector_from_values(scenario, values)
         validity = check_validity(make_scene(scenario, values, parts))
-        inside = "inside" if np.all((vec >= 0) & (vec <= 1)) else "OUTSIDE"
-        status = "valid" if validity.valid else "invalid: " + "; ".join(
-            f"{o.first}/{o.second} overlap {o.depth * 1000:.2f} mm" for o in validity.overlaps)
-        say(f"  {name}: {status}; {inside} the design space")
-    return 0
+        problems = [f"{o.first}/{o.second} overlap {o.depth * 1000:.2f} mm"
+                    for o in validity.overlaps] + _outside(scenario, values)
+        bad += bool(problems)
+        say(f"  {name}: " + ("valid, inside the design space" if not problems
+                             else "INVALID: " + "; ".join(problems)))
+    return 1 if bad else 0
+
+
+def _outside(scenario, values) -> list[str]:
+    """How far each parameter of ``values`` lies outside its range, in its unit."""
+    out = []
+    for f, v in zip(scenario.free, values, strict=True):
+        k, unit = (1.0, "deg") if f.unit in ("deg", "degree", "degrees") else (1000.0, "mm")
+        if v < f.low or v > f.high:
+            side, by = ("below", f.low - v) if v < f.low else ("above", v - f.high)
+            out.append(f"{f.name} = {v * k:.6g} {unit} is {by * k:.3g} {unit} {side} its "
+                       f"range [{f.low * k:g}, {f.high * k:g}] {unit}")
+    return out
 
 
 def _event_row(name, event, default_timeout: float) -> tuple:

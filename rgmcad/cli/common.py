@@ -62,7 +62,7 @@ def load_parts_of(scenario, args) -> dict:
 
 def note_first_build(args) -> None:
     """Say on stderr that parts are about to be built, when the part cache does not exist."""
-    if not Path(args.build_dir).exists():
+    if not Path(args.build_dir).exists() and not getattr(args, "quiet", 0):
         print(f"building parts into {args.build_dir} (first run only)...", file=sys.stderr)
 
 
@@ -71,6 +71,7 @@ def budget_name(name: str) -> str:
     takes seconds, too long for every command's start)."""
     from rgmcad.learning.settings import BUDGETS
 
+    name = name.lower()
     if name not in BUDGETS:
         raise argparse.ArgumentTypeError(f"unknown budget {name!r}; valid: {', '.join(BUDGETS)}")
     return name

@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import sys
 
 from rgmcad.cli.common import (
     add_scenario_arg,
@@ -14,6 +13,7 @@ from rgmcad.cli.common import (
     parts_dir_arg,
     say,
 )
+from rgmcad.cli.progress import SimulationBar
 
 __all__ = ["configure", "run"]
 
@@ -34,32 +34,6 @@ def configure(p: argparse.ArgumentParser) -> None:
     p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
 
 
-class _Bar:
-    """Progress on stderr: layouts tested for validity, then simulations (from the first
-    report on)."""
-
-    bar = None
-
-    def stage(self, name: str, total: int | None = None) -> None:
-        if self.bar is None:
-            from tqdm import tqdm
-
-            self.bar = tqdm(desc=name, unit="layout", file=sys.stderr, mininterval=0.5)
-        elif name != self.bar.desc:
-            self.bar.set_description(name)
-            self.bar.reset(total=total)
-
-    def tested(self, n: int) -> None:
-        self.bar.update(n)
-
-    def simulated(self, record, replayed: bool = False) -> None:
-        self.bar.update(1)
-
-    def close(self) -> None:
-        if self.bar is not None:
-            self.bar.close()
-
-
 def run(args) -> int:
     from rgmcad.cli.paths import output_file
     from rgmcad.runs.checks import MAX_SAMPLES, MAX_SEED, check_range, check_workers, plot_suffixes
@@ -71,7 +45,7 @@ def run(args) -> int:
     if args.out is not None:  # and again, trying, by the workflow, with its default
         output_file(args.out, "--out", plot_suffixes())
     note_first_build(args)
-    bar = _Bar()
+    bar = SimulationBar("validity", count_tested=True, enabled=not args.quiet)
     try:
         result = evaluate_layout(args.scenario, args.layout, samples=args.samples,
                                  seed=args.seed, workers=args.workers,

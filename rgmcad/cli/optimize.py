@@ -17,10 +17,10 @@ from rgmcad.cli.common import (
     parts_dir_arg,
     say,
 )
+from rgmcad.cli.export import RUN_FILES, export_files
+from rgmcad.cli.progress import SimulationBar
 
 __all__ = ["configure", "run"]
-
-
 
 
 def configure(p: argparse.ArgumentParser) -> None:
@@ -41,55 +41,17 @@ def configure(p: argparse.ArgumentParser) -> None:
     p.add_argument("--json", action="store_true", help="print one JSON summary on stdout")
 
 
-class _Bar:
-    """Progress on stderr: stage, simulations (new and replayed), successes. The bar appears
-    at the first report, so a finished run shows none."""
-
-    def __init__(self):
-        self.bar = None
-        self.successes = self.replayed = 0
-
-    def _start(self):
-        if self.bar is None:
-            from tqdm import tqdm
-
-            self.bar = tqdm(desc="exploration", unit="sim", file=sys.stderr, mininterval=0.5,
-                            dynamic_ncols=True)
-        return self.bar
-
-    def simulated(self, record, replayed: bool = False) -> None:
-        from rgmcad.sim.run import Outcome
-
-        bar = self._start()
-        self.successes += record.outcome is Outcome.SUCCESS
-        self.replayed += replayed
-        bar.set_postfix(successes=self.successes, replayed=self.replayed, refresh=False)
-        bar.update(1)
-
-    def stage(self, name: str, total: int | None = None) -> None:
-        bar = self._start()
-        if name != bar.desc:
-            bar.set_description(name)
-
-    def tested(self, n: int) -> None:
-        pass
-
-    def close(self) -> None:
-        if self.bar is not None:
-            self.bar.close()
-
-
 def run(args) -> int:
     from rgmcad.cli.paths import output_dir
     from rgmcad.runs.checks import MAX_SEED, check_range, check_workers
-    from rgmcad.runs.workflow import optimize_scenario
+    from rgmcad.runs.workflow import LAYOUT_FILE, optimize_scenario
 
     check_range(args.seed, 0, MAX_SEED, "--seed", "a seed")
     check_workers(args.workers)
     if args.run_dir is not None:  # and again, trying, when the run store opens it
         output_dir(args.run_dir, "--run")
     note_first_build(args)
-    bar = _Bar()
+    bar = SimulationBar(enabled=not args.quiet)
     try:
         done = optimize_scenario(args.scenario, seed=args.seed, budget=args.budget,
                                  run_dir=args.run_dir, workers=args.workers,
@@ -98,9 +60,14 @@ def run(args) -> int:
                                  batch=args.batch)
     finally:
         bar.close()
-    if done.finished_before:
+    if done.finished_before and not args.quiet:
         sys.stderr.write(f"{done.run_dir}: finished already; showing its result\n")
+    layout = done.run_dir / LAYOUT_FILE  # where the run is now, not where it was made
+    if not all((done.run_dir / name).exists() for name in RUN_FILES):  # the layout as CAD
+        export_files(args, str(layout), None, [done.run_dir / n for n in RUN_FILES])
     show(done.summary, args.json, done.wall_time if done.finished_before else None)
+    if not args.json:
+        say(f"next: rgmcad simulate {args.scenario_given} --layout {layout}")
     return 0 if done.verified else 1
 
 
@@ -125,4 +92,5 @@ def show(summary: dict, as_json: bool, wall_time: float | None = None) -> None:
         k = 1.0 if unit == "deg" else 1000.0
         say(f"  {name:24s} {summary['values'][name] * k:9.2f} {unit:3s}  "
             f"-{down * k:.2f} / +{up * k:.2f}")
-    say(f"report: {Path(summary['run']) / 'report.md'}")
+    say(f"report: {Path(summary['run']) / 'report.md'}; the layout as CAD: "
+        f"{', '.join(str(Path(summary['run']) / n) for n in RUN_FILES)}")

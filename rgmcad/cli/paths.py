@@ -14,6 +14,20 @@ from pathlib import Path
 
 from rgmcad.errors import UsageError
 
+CACHE_VARIABLE = "RGMCAD_CACHE"
+
+
+def default_build_dir() -> Path:
+    """Where built parts are cached unless ``--build-dir`` says: ``$RGMCAD_CACHE``, else
+    ``rgmcad/parts`` in the user's cache folder (``$XDG_CACHE_HOME``, by default
+    ``~/.cache``, on Linux; ``~/Library/Caches`` on macOS; ``%LOCALAPPDATA%`` on Windows),
+    so every working directory shares one cache."""
+    if os.environ.get(CACHE_VARIABLE):
+        return Path(os.environ[CACHE_VARIABLE])
+    from platformdirs import user_cache_path
+
+    return user_cache_path("rgmcad", appauthor=False) / "parts"
+
 
 def pixels(low: int, high: int):
     """``type=`` of a size in pixels: a whole number from ``low`` to ``high``."""

@@ -18,6 +18,9 @@ def configure(p) -> None:
                    help=f"pixels, {MIN_PIXELS} to {MAX_PIXELS} (default 1024)")
     p.add_argument("--height", type=pixels(MIN_PIXELS, MAX_PIXELS), default=768,
                    help=f"pixels, {MIN_PIXELS} to {MAX_PIXELS} (default 768)")
+    p.add_argument("--labels", action="store_true", help="write each part's name beside it")
+    p.add_argument("--no-scale-bar", dest="scale_bar", action="store_false",
+                   help="leave out the scale bar (drawn at the depth of the layout's centre)")
 
 
 def run(args) -> int:
@@ -29,6 +32,7 @@ def run(args) -> int:
     scenario = load_scenario_arg(args)
     name, values = resolve_layout(scenario, args.layout, args.vector)
     scene = make_scene(scenario, values, load_parts_of(scenario, args))
-    render_png(scene, scenario.settings, out, args.width, args.height)
+    render_png(scenario, scene, out, args.width, args.height, show_labels=args.labels,
+               show_scale=args.scale_bar)
     say(f"{args.out}: {scenario.name}, layout {name}")
     return 0

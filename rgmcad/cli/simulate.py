@@ -1,4 +1,5 @@
-"""``rgmcad simulate``: simulate one layout, print its event timeline (or JSON), save a video."""
+"""``rgmcad simulate``: simulate one layout, print its event timeline (or JSON), save a video.
+Exit status 0 when the layout succeeds, 1 when it fails or is invalid (2: bad input)."""
 
 from __future__ import annotations
 
@@ -13,7 +14,7 @@ from rgmcad.cli.common import (
     print_table,
     say,
 )
-from rgmcad.cli.paths import output_file, pixels
+from rgmcad.cli.paths import finite, output_file, pixels
 
 VIDEO_FPS = 30.0
 VIDEO_SUFFIXES = (".mp4", ".gif")
@@ -33,6 +34,9 @@ def configure(p) -> None:
                    f"{MAX_PIXELS} (default 640)")
     p.add_argument("--height", type=size, default=480, help=f"video pixels, {MIN_PIXELS} to "
                    f"{MAX_PIXELS} (default 480)")
+    p.add_argument("--speed", type=finite, default=0.25, help="video playback speed against "
+                   "real time, 0.01 to 4 (default 0.25: a domino falls in a tenth of a second)")
+    p.add_argument("--labels", action="store_true", help="write the parts' names in the video")
 
 
 def run(args) -> int:
@@ -44,9 +48,11 @@ def run(args) -> int:
 
     if args.video:
         output_file(args.video, "--video", VIDEO_SUFFIXES)
+        if not 0.01 <= args.speed <= 4:
+            raise UsageError("--speed", "", f"expected 0.01 to 4, got {args.speed:g}")
     scenario = load_scenario_arg(args)
     if args.video:
-        frames = video_frames(scenario.settings, VIDEO_FPS)
+        frames = video_frames(scenario.settings, VIDEO_FPS, args.speed)
         need = frames * args.width * args.height * 3
         if need > MAX_VIDEO_BYTES:
             raise UsageError("--width/--height", "", f"{args.width} x {args.height} pixels for "
@@ -56,7 +62,7 @@ def run(args) -> int:
     parts = load_parts_of(scenario, args)
     if args.video:
         result = record_video(scenario, values, parts, Path(args.video), VIDEO_FPS,
-                              args.width, args.height)
+                              args.width, args.height, args.speed, args.labels)
     else:
         result = simulate(scenario, values, parts)
     if args.json:
@@ -67,7 +73,7 @@ def run(args) -> int:
         if args.video:
             out["video"] = args.video
         say(json.dumps(out))
-        return 0
+        return 0 if result.outcome is Outcome.SUCCESS else 1
     say(f"{scenario.name}, layout {name}")
     if result.outcome is Outcome.INVALID:
         for o in result.validity.overlaps:
@@ -80,4 +86,4 @@ def run(args) -> int:
         f"{result.sim_time:.3f} s simulated in {result.wall_time:.2f} s)")
     if args.video:
         say(f"video: {args.video}")
-    return 0
+    return 0 if result.outcome is Outcome.SUCCESS else 1

@@ -89,7 +89,7 @@ def budget_of_ours(summary: dict) -> int:
     """Simulations of an ``optimize`` run counted in the budget: exploration and labelled
     active learning (SPEC 5.6), not verification nor discarded labels."""
     by_stage = summary.get("simulations_by_stage", {})
-    return int(summary["simulations"] - by_stage.get("verification", 0)
+    return int(summary.get("evaluations", summary["simulations"]) - by_stage.get("verification", 0)
                - summary.get("discarded", 0))
 
 

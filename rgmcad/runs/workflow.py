@@ -278,8 +278,10 @@ def _write_outputs(scenario, store, recorded, result, chosen, wall_time, seed, b
         scenario, result.x_start, probability=float(result.probability_start),
         source="the explored sample with the highest predicted success (start of the "
                "refinement)"))
-    n_total = result.n_total_simulations + chosen["n_simulations"]
-    n_success = sum(lab.success for lab in result.labels)
+    # what the run store holds: each distinct layout simulated once, verification included
+    # (the learner's evaluations count a repeated vector, or a stored one, again)
+    stored = list(store.records.values())
+    n_success = sum(r.outcome is Outcome.SUCCESS for r in stored)
     summary = {
         "scenario": scenario.name,
         "run": str(run_dir),
@@ -303,7 +305,8 @@ def _write_outputs(scenario, store, recorded, result, chosen, wall_time, seed, b
                          "objective": result.optimization.objective,
                          "evaluations": result.optimization.n_evaluations,
                          "status": result.optimization.status},
-        "simulations": n_total,
+        "simulations": len(stored),
+        "evaluations": result.n_total_simulations + chosen["n_simulations"],
         "simulations_by_stage": {**result.n_simulations,
                                  "verification": chosen["n_simulations"]},
         "verification": chosen["candidates"],
@@ -311,7 +314,7 @@ def _write_outputs(scenario, store, recorded, result, chosen, wall_time, seed, b
         "successes": int(n_success),
         "discarded": result.n_discarded,
         "simulated_now": recorded.n_simulated,
-        "replayed": recorded.n_replayed,
+        "replayed": max(len(stored) - recorded.n_simulated, 0),
         "simulation_seconds": float(sum(r.seconds for r in store.records.values())),
         "wall_time": wall_time,
         "factors": {e: _factor(scenario, result, e) for e in model.events},

@@ -38,7 +38,9 @@ def _read(path: Path) -> object:
 
 
 def resolve_layout(scenario, layout: str | None, vector: str | None):
-    """(name, real values (d,)) of ``--layout NAME|FILE`` or ``--vector v1,...,vd``."""
+    """(name, real values (d,)) of ``--layout NAME|FILE`` or ``--vector v1,...,vd``; a layout
+    file is named by its path as given (``runs/simple-s0/layout.json``), since every run's
+    file has the same stem."""
     where = str(scenario.path)
     if vector is not None:
         try:
@@ -58,7 +60,7 @@ def resolve_layout(scenario, layout: str | None, vector: str | None):
     if not path.exists():
         raise ScenarioError(where, "layouts", f"unknown layout {name!r}: not a layout of this "
                             f"scenario ({', '.join(scenario.layouts)}) nor a file")
-    return path.stem, load_layout_file(scenario, path)
+    return name, load_layout_file(scenario, path)
 
 
 def load_layout_file(scenario, path: Path) -> np.ndarray:

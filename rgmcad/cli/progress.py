@@ -1,0 +1,69 @@
+"""Progress bars on stderr for the commands that run many simulations (a
+:class:`~rgmcad.runs.workflow.RunProgress`). ``-q`` turns them off."""
+
+from __future__ import annotations
+
+import sys
+
+
+class SimulationBar:
+    """Stage, simulations and successes, counted as the run's summary counts them: each
+    distinct layout once (the store hands out one record per layout, so a repeated or stored
+    layout comes back as the same record), the verification stage included. ``replayed``:
+    records read back from an earlier, interrupted call. The bar appears at the first report,
+    so a finished run shows none.
+
+    Parameters
+    ----------
+    desc : the first stage's name.
+    count_tested : whether the layouts tested for validity are shown (``evaluate``).
+    """
+
+    def __init__(self, desc: str = "exploration", count_tested: bool = False,
+                 enabled: bool = True):
+        self.desc, self.count_tested, self.enabled = desc, count_tested, enabled
+        self.bar = None
+        self.seen: set[int] = set()
+        self._records: list = []  # keeps the records alive, so their ids stay theirs
+        self.simulations = self.successes = self.replayed = self.n_tested = 0
+
+    def _start(self):
+        if self.bar is None:
+            from tqdm import tqdm
+
+            self.bar = tqdm(desc=self.desc, unit="sim", file=sys.stderr, mininterval=0.5,
+                            dynamic_ncols=True, disable=not self.enabled)
+        return self.bar
+
+    def stage(self, name: str, total: int | None = None) -> None:
+        bar = self._start()
+        if name != self.desc:
+            self.desc = name
+            bar.set_description(name)
+
+    def tested(self, n: int) -> None:
+        if self.count_tested:
+            self.n_tested += n
+            self._postfix(self._start())
+
+    def simulated(self, record, replayed: bool = False) -> None:
+        from rgmcad.sim.run import Outcome
+
+        bar = self._start()
+        if id(record) in self.seen:
+            return
+        self.seen.add(id(record))
+        self._records.append(record)
+        self.simulations += 1
+        self.successes += record.outcome is Outcome.SUCCESS
+        self.replayed += replayed
+        self._postfix(bar)
+        bar.update(1)
+
+    def _postfix(self, bar) -> None:
+        shown = {"tested": self.n_tested} if self.count_tested else {"replayed": self.replayed}
+        bar.set_postfix(successes=self.successes, **shown, refresh=False)
+
+    def close(self) -> None:
+        if self.bar is not None:
+            self.bar.close()

@@ -1,0 +1,137 @@
+"""Pictures and videos people can show: clean flat faces, a scale bar that measures what the
+picture shows, labels on request, and videos slowed down with the time and events on them."""
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+from PIL import Image
+
+from rgmcad.cli import main
+
+ROOT = Path(__file__).resolve().parent.parent
+SIMPLE = str(ROOT / "scenarios" / "simple.toml")
+# the renderer's camera looks along -(0.35, -1, 0.75) at a layout on a floor
+_VIEW = np.array([0.35, -1.0, 0.75]) / np.linalg.norm([0.35, -1.0, 0.75])
+RIGHT = np.cross(-_VIEW, [0.0, 0.0, 1.0])
+RIGHT /= np.linalg.norm(RIGHT)
+
+
+def _scenario(tmp_path, objects: str) -> str:
+    path = tmp_path / "scene.toml"
+    path.write_text('name = "scene"\ndescription = "a picture"\n\n[objects.floor]\n'
+                    'part = "plane"\n\n' + objects + '\n[events.a_falls]\ntype = "falling"\n'
+                    'body = "a"\n')
+    return str(path)
+
+
+def _ball(name: str, at) -> str:  # simple's ball, already in the part cache
+    x, y, z = (float(v) for v in at)
+    return (f'[objects.{name}]\npart = "ball"\nparams = {{ radius = 0.01 }}\nmass = 0.01\n'
+            f"pose = {{ x = {x!r}, y = {y!r}, z = {z!r} }}\n\n")
+
+
+def _saturated(image: np.ndarray) -> np.ndarray:
+    rgb = image[:, :, :3].astype(int)
+    return (rgb.max(axis=2) - rgb.min(axis=2)) > 60
+
+
+def test_a_flat_face_is_drawn_in_one_shade_without_speckle_or_stripes(tmp_path):
+    box = ('[objects.a]\npart = "box"\nparams = { length = 0.175, width = 0.33, '
+           'height = 0.093 }\npose = { z = 0.0465 }\n\n')
+    png = tmp_path / "box.png"
+    assert main(["render", _scenario(tmp_path, box), "--out", str(png), "--width", "320",
+                 "--height", "240", "--no-scale-bar"]) == 0
+    image = np.asarray(Image.open(png).convert("RGB")).astype(float)
+    # the picture's centre falls on the box's top face: one shade there
+    patch = image[110:130, 150:170]
+    assert patch.std(axis=(0, 1)).max() < 2.0
+    # and the box is lit: its faces differ from each other and from the white background
+    assert len({tuple(p) for p in image[::8, ::8].reshape(-1, 3).astype(int)}) >= 3
+
+
+def test_the_scale_bar_measures_what_the_picture_shows(tmp_path):
+    half = 0.05  # two balls 100 mm apart, across the view, at the layout's centre
+    objects = _ball("a", -half * RIGHT + [0, 0, 0.01]) + _ball("b", half * RIGHT + [0, 0, 0.01])
+    png = tmp_path / "balls.png"
+    from rgmcad.scene.bodies import load_parts, make_scene
+    from rgmcad.scene.layout_files import resolve_layout
+    from rgmcad.scene.loader import load_scenario
+    from rgmcad.sim.render import render_png
+
+    scenario = load_scenario(_scenario(tmp_path, objects))
+    _, values = resolve_layout(scenario, None, None)
+    scene = make_scene(scenario, values, load_parts(scenario))
+    bar_mm, bar_px = render_png(scenario, scene, png, 640, 480)
+    image = np.asarray(Image.open(png).convert("RGB"))
+    ys, xs = np.nonzero(_saturated(image))
+    left, right = xs < 320, xs >= 320
+    centres = [np.array([xs[m].mean(), ys[m].mean()]) for m in (left, right)]
+    px_per_mm = np.linalg.norm(centres[1] - centres[0]) / 100.0
+    assert bar_px / bar_mm == pytest.approx(px_per_mm, rel=0.03)
+    # the bar drawn is that long: a dark run of pixels at the bottom left
+    rows = image[int(480 * 0.8):, : 320].astype(int).sum(axis=2) < 150
+    longest = max(_longest_run(r) for r in rows)
+    assert longest == pytest.approx(bar_px, abs=4)
+
+
+def _longest_run(row: np.ndarray) -> int:
+    best = run = 0
+    for v in row:
+        run = run + 1 if v else 0
+        best = max(best, run)
+    return best
+
+
+def test_labels_are_drawn_on_request_only(tmp_path):
+    plain, labelled = tmp_path / "p.png", tmp_path / "l.png"
+    args = ["render", SIMPLE, "--width", "320", "--height", "240"]
+    assert main([*args, "--out", str(plain)]) == 0
+    assert main([*args, "--out", str(labelled), "--labels"]) == 0
+    a = np.asarray(Image.open(plain).convert("RGB")).astype(int)
+    b = np.asarray(Image.open(labelled).convert("RGB")).astype(int)
+    changed = np.abs(a - b).sum(axis=2) > 30
+    assert changed.sum() > 300  # the names of ball, track and the run
+
+
+def _frames(path):
+    image = Image.open(path)
+    out = []
+    for i in range(image.n_frames):
+        image.seek(i)
+        out.append(np.asarray(image.convert("RGB")).astype(int))
+    return out
+
+
+def _seconds(mp4) -> float:
+    """How long an MP4 plays, less the last 1.5 s (the last frame held to read the end)."""
+    import imageio.v2 as imageio
+
+    reader = imageio.get_reader(mp4)
+    fps = reader.get_meta_data()["fps"]
+    return reader.count_frames() / fps - 1.5
+
+
+def test_video_is_slowed_down_and_shows_time_and_events_as_they_succeed(tmp_path, capsys):
+    slow, real, gif = tmp_path / "slow.mp4", tmp_path / "real.mp4", tmp_path / "slow.gif"
+    size = ["--width", "160", "--height", "120"]
+    assert main(["simulate", SIMPLE, "--video", str(slow), *size, "--json"]) == 0
+    result = json.loads(capsys.readouterr().out)
+    assert main(["simulate", SIMPLE, "--video", str(real), *size, "--speed", "1"]) == 0
+    # a quarter of real time by default (within the first and last frames' times)
+    frame = 2.5 / 30
+    assert _seconds(slow) == pytest.approx(result["sim_time"] / 0.25, abs=frame)
+    assert _seconds(real) == pytest.approx(result["sim_time"], abs=frame)
+    assert main(["simulate", SIMPLE, "--video", str(gif), *size]) == 0
+    slow_frames = _frames(gif)
+
+    def green_dots(frame):  # the event list, left; a success's dot is filled green
+        panel = frame[:100, :14]
+        return ((np.abs(panel - [20, 130, 40]) < 45).all(axis=2)).sum()
+
+    first, last = green_dots(slow_frames[0]), green_dots(slow_frames[-1])
+    assert first == 0 and last > 20 * len(result["events"])
+    # the time runs: the top right corner changes from frame to frame
+    corner = [f[:20, -90:] for f in slow_frames[:40:10]]
+    assert all(np.abs(a - b).sum() > 0 for a, b in zip(corner, corner[1:], strict=False))
