@@ -138,7 +138,9 @@ def make_template(parts, base_planes, out_dir, *, plane: str | None = None,
 
     # pages: the first page (and parts-list continuation pages), then sheets row by row
     map_info = sheet_info("map", -1, -1, 1, paper, "portrait", MAP_SLOT)
-    first = cover_page_count(outlines, map_info.size_mm) + 1
+    # the parts list names each part's sheets, and its length numbers the sheets' pages
+    sheets = tile_sheets(drawing.extent, paper, orientation, (cols, rows), overlap_mm, 2)
+    first = cover_page_count(outlines, map_info.size_mm, sheets) + 1
     sheets = tile_sheets(drawing.extent, paper, orientation, (cols, rows), overlap_mm, first)
     pdf_path, svg_path = out_dir / "template.pdf", out_dir / "template.svg"
     n_pages = write_pdf(pdf_path, title, drawing, outlines, frame, map_info, sheets,
