@@ -32,7 +32,8 @@ PALETTE = (
     (0.96, 0.84, 0.70),
     (0.90, 0.90, 0.78),
 )
-"""Light fill colours of the parts (RGB in 0..1), cycled in placement order."""
+"""Light fill colours of the parts (RGB in 0..1), cycled in placement order (see
+:func:`fill_colours`)."""
 
 OUTLINE_MM = 0.25
 """Stroke width of a part's outline, mm."""
@@ -183,6 +184,18 @@ class TextItem:
     colour: tuple[float, float, float] = (0.0, 0.0, 0.0)
 
 
+def fill_colours(outlines, gap_mm: float = 2.0) -> list[tuple[float, float, float]]:
+    """A fill colour per outline (in order): the palette in turn, skipping colours of
+    earlier outlines within ``gap_mm``, so a part never merges into one it touches."""
+    chosen: list[int] = []
+    for k, geom in enumerate(outlines):
+        near = {chosen[j] for j in range(k) if geom.distance(outlines[j]) < gap_mm}
+        pick = next((c % len(PALETTE) for c in range(k, k + len(PALETTE))
+                     if c % len(PALETTE) not in near), k % len(PALETTE))
+        chosen.append(pick)
+    return [PALETTE[c] for c in chosen]
+
+
 def _rings(geom) -> list[np.ndarray]:
     rings = []
     for g in getattr(geom, "geoms", [geom]):
@@ -250,10 +263,11 @@ def build_drawing(parts, base_planes, frame: PlaneFrame) -> tuple[Drawing, tuple
         sizes.append(block_size(lines))
     boxes = place_labels(outlines, sizes)
 
+    colours = fill_colours(outlines)
     fills, strokes, texts, leaders = [], [], [], []
     results = []
     for k, (p, geom) in enumerate(zip(parts, outlines, strict=True)):
-        rgb = PALETTE[k % len(PALETTE)]
+        rgb = colours[k]
         rings = tuple(_rings(geom))
         ident = f"part-{k + 1}"
         fills.append(PathItem(rings, fill=rgb, stroke=None, cls="part-fill", ident=ident))
