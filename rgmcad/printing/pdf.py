@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from rgmcad.printing.drawing import Drawing, TextItem
-from rgmcad.printing.labels import font_name, pdf_safe, wrap
+from rgmcad.printing.labels import font_name, pdf_safe, text_width, wrap
 from rgmcad.printing.plane import PlaneFrame
 from rgmcad.printing.seams import seams_of
 from rgmcad.printing.sheetpage import (
@@ -26,6 +26,18 @@ from rgmcad.printing.sheetpage import (
     top_band,
 )
 from rgmcad.printing.sheets import BAND_MM, MARGIN_MM, SheetInfo, tag_quads
+
+
+def _reaches(item, region) -> bool:
+    u0, v0, u1, v1 = region
+    if isinstance(item, TextItem):
+        w = text_width(item.text, item.size, item.bold)
+        x0 = item.x - {"middle": w / 2, "end": w}.get(item.anchor, 0.0)
+        box = (x0, item.y - item.size, x0 + w, item.y + item.size)
+    else:
+        pts = np.concatenate(item.rings)
+        box = (*pts.min(0), *pts.max(0))
+    return box[0] <= u1 and box[2] >= u0 and box[1] <= v1 and box[3] >= v0
 
 
 class _Pdf:
@@ -101,12 +113,15 @@ class _Pdf:
         c.setFillColorRGB(0, 0, 0)
         c.drawPath(p, stroke=0, fill=1)
 
-    def drawing(self, items, skip_text=False):
-        """Draw items whose coordinates are drawing mm (current transform maps them)."""
+    def drawing(self, items, skip_text=False, region=None):
+        """Draw items whose coordinates are drawing mm (current transform maps them); with
+        ``region`` ``(u0, v0, u1, v1)``, only those that reach into it."""
         from reportlab.pdfgen.canvas import FILL_EVEN_ODD
 
         c = self.c
         for it in items:
+            if region is not None and not _reaches(it, region):
+                continue
             if isinstance(it, TextItem):
                 if skip_text:
                     continue
@@ -278,7 +293,10 @@ def _cover_pages(pdf, drawing, parts, info: SheetInfo, sheets, grid, title, fram
         ("'3. name': placement order and part name", False),
         ("bottom/back, origin: height of the part's lowest point and of its frame "
          "origin above the plane", False),
-        ("tilt: angle the outline cannot show", False),
+        ("tilt: angle the outline cannot show, and which way the part leans (dashed "
+         "arrow); solid arrow: the way a domino falls", False),
+        ("frame (circle and cross): a run's or joint's origin, with its tolerances; moving "
+         "or turning the frame moves all its parts", False),
         ("dash-dot line: a base plane (floor, board) seen edge-on", False),
         ("magenta line: a seam. On the sheet to the right or below, cut along it; lay that "
          "cut edge on the same line of the sheet to the left or above (its hatched strip "

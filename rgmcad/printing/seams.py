@@ -106,3 +106,32 @@ def seams_of(sheets) -> tuple[Seam, ...]:
             count += len(marks)
             out.append(Seam(s.label, below.label, "v", s.keep_mm[1], (lo, hi), marks))
     return tuple(out)
+
+
+def label_keepouts(sheets, seams, tick_strip_mm: float = 6.0):
+    """Where labels must not go, and where they must stay, drawing mm (shapely).
+
+    Returns ``(avoid, inside)``: ``avoid`` the seam lines with a margin, their matching
+    marks and letter pairs, and the strips along the top and left of each sheet's kept area
+    that carry world ticks; ``inside`` the area the sheets keep, less a margin, so no label
+    is clipped at a sheet's edge or left in a strip that is cut away.
+    """
+    from shapely.geometry import LineString
+    from shapely.geometry import box as shapely_box
+    from shapely.ops import unary_union
+
+    avoid = []
+    for s in seams:
+        lo, hi = s.span
+        avoid.append(LineString([s.points(lo), s.points(hi)]).buffer(1.5))
+        reach = MARK_HALF_MM + 7.0
+        for t, _ in s.marks:
+            a, b = s.points(t - 2.0, -reach), s.points(t + 2.0, reach)
+            avoid.append(shapely_box(min(a[0], b[0]), min(a[1], b[1]),
+                                     max(a[0], b[0]), max(a[1], b[1])))
+    for s in sheets:
+        u0, v0, u1, v1 = s.keep_mm
+        avoid.append(shapely_box(u0, v1 - tick_strip_mm, u1, v1))
+        avoid.append(shapely_box(u0, v0, u0 + 2 * tick_strip_mm, v1))
+    inside = unary_union([shapely_box(*s.keep_mm) for s in sheets]).buffer(-1.0)
+    return tuple(avoid), inside

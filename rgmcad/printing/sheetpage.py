@@ -202,7 +202,7 @@ def tile_page(pdf, drawing, info: SheetInfo, seams, grid, title, paper, frame: P
     p.rect(x0, h - y1, x1 - x0, y1 - y0)
     c.clipPath(p, stroke=0, fill=0)
     c.translate(x0 - u0, (h - y1) - v0)
-    pdf.drawing(drawing.items)
+    pdf.drawing(drawing.items, region=info.region_mm)
     c.restoreState()
     pdf.rect(x0, y0, x1 - x0, y1 - y0, fill=None, stroke=(0.6, 0.6, 0.6), width=0.1)
     mine = [s for s in seams if info.label in (s.under, s.over)]
@@ -226,7 +226,8 @@ def tile_page(pdf, drawing, info: SheetInfo, seams, grid, title, paper, frame: P
                      f"{' and '.join(cut)}, the cut edge on their magenta line and each letter "
                      "pair on its twin (AB on AB); tape across the seam.")
     if under:
-        steps.append(f"{' and '.join(under)} go on the hatched strip(s), over this sheet.")
+        steps.append(f"{' and '.join(under)} {'go' if len(under) > 1 else 'goes'} on the "
+                     "hatched strip, over this sheet.")
     top_band(pdf, info.label, [
         PRINT_NOTE,
         f"{title}  -  sheet {info.label} of {cols} x {rows} ({paper} {info.orientation})",
