@@ -25,6 +25,10 @@ def configure(p) -> None:
     p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
 
 
+def _num(value):
+    return None if value is None else float(value)
+
+
 def run(args) -> int:
     from rgmcad.printing.check import Verdict, verify_print
 
@@ -34,9 +38,10 @@ def run(args) -> int:
         say(json.dumps({
             "image": check.path, "sheet": check.sheet, "paper": check.paper,
             "tag_ids": list(check.tag_ids), "verdict": check.verdict.value,
-            "scale": check.scale, "scale_error_percent": check.scale_error_percent,
-            "scale_xy": list(check.scale_xy), "method": check.method,
-            "residual_mm": check.residual_mm, "bow_mm": check.bow_mm, "ok": check.ok,
+            "scale": _num(check.scale), "scale_error_percent": _num(check.scale_error_percent),
+            "scale_xy": [_num(v) for v in check.scale_xy], "method": check.method,
+            "residual_mm": _num(check.residual_mm), "bow_mm": _num(check.bow_mm),
+            "ok": check.ok,
             "message": check.message,
         }))
         return status

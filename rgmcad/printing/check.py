@@ -45,9 +45,9 @@ log.addHandler(logging.NullHandler())
 
 TOLERANCE_PERCENT = 0.5
 """Scale errors beyond this (in %) ask for a reprint."""
-FLAT_MARKS_MM = 0.2
-"""RMS misfit (mm on the paper) of the marks' corners to one plane beyond which the sheet
-is not flat."""
+FLAT_MARKS_MM = 0.15
+"""Misfit (mm on the paper) of a mark's corner to the plane of all marks beyond which the
+sheet is not flat (or one photo pixel, if that is more)."""
 FLAT_EDGE_MM = 0.35
 """Bow of an edge (mm) beyond which the sheet is not flat."""
 FLAT_AXES = 0.004
@@ -168,15 +168,19 @@ def _measured(path, label, ids, paper, scale, method, xy, residual, bow=0.0) -> 
                       method, message, xy, residual, bow)
 
 
-def _marks_residual_mm(px: np.ndarray, mm: np.ndarray) -> float:
-    """RMS misfit (mm) of the marks' corners to one plane: the homography photo -> paper."""
+def _marks_residual_mm(px: np.ndarray, mm: np.ndarray) -> tuple[float, float, float]:
+    """Misfit of the marks' corners to one plane (the homography photo -> paper): rms and
+    largest, mm on the paper, and the size of one photo pixel there, mm."""
     import cv2
 
     h, _ = cv2.findHomography(px.astype(np.float64), mm.astype(np.float64), 0)
     if h is None:
-        return math.inf
+        return math.inf, math.inf, 0.0
     p = cv2.perspectiveTransform(px.reshape(-1, 1, 2).astype(np.float64), h).reshape(-1, 2)
-    return float(np.sqrt(((p - mm) ** 2).sum(1).mean()))
+    r = np.linalg.norm(p - mm, axis=1)
+    pixel = float(np.sqrt(np.ptp(mm[:, 0]) * np.ptp(mm[:, 1]) /
+                          max(1e-9, np.ptp(px[:, 0]) * np.ptp(px[:, 1]))))
+    return float(np.sqrt((r**2).mean())), float(r.max()), pixel
 
 
 def _from_edges(path, grey, label, ids, marks, fits) -> PrintCheck:
@@ -185,7 +189,9 @@ def _from_edges(path, grey, label, ids, marks, fits) -> PrintCheck:
     ranked = sorted(fits, key=lambda p: fits[p][3])
     clear = len(marks) >= 3 and fits[ranked[0]][3] < 0.5 * fits[ranked[1]][3]
     paper = ranked[0]
-    residual = _marks_residual_mm(px, _planned(paper, marks)) if len(marks) >= 3 else 0.0
+    residual, worst, pixel = (_marks_residual_mm(px, _planned(paper, marks)) if len(marks) >= 3
+                              else (0.0, 0.0, 0.0))
+    bent = worst > max(FLAT_MARKS_MM, pixel)
     readings = {}
     for p in ranked[:1] if clear else ranked:
         readings[p] = measure_edges(grey, fits[p][2], p)
@@ -197,12 +203,12 @@ def _from_edges(path, grey, label, ids, marks, fits) -> PrintCheck:
         paper = min(readings, key=spread)
     r = readings[paper]
     found = [v for v in (r.scale_w, r.scale_h) if v is not None]
-    common = (path, label, ids, paper)
-    if residual > FLAT_MARKS_MM or r.bow_mm > FLAT_EDGE_MM or (
+    common = (str(path), label, ids, paper)
+    if bent or r.bow_mm > FLAT_EDGE_MM or (
             len(found) == 2 and abs(r.scale_w - r.scale_h) > FLAT_AXES):
         why = []
-        if residual > FLAT_MARKS_MM:
-            why.append(f"the marks misfit one plane by {residual:.2f} mm")
+        if bent:
+            why.append(f"a mark's corner is {worst:.2f} mm off the plane of the others")
         if r.bow_mm > FLAT_EDGE_MM:
             why.append(f"an edge bows by {r.bow_mm:.1f} mm")
         if len(found) == 2 and abs(r.scale_w - r.scale_h) > FLAT_AXES:

@@ -148,10 +148,12 @@ def _robust_line(points: np.ndarray):
 
 
 def _bow(points: np.ndarray, line) -> float:
-    """Largest |median residual| over 15 mm stretches of an edge, mm."""
-    a, b, keep = line
-    t, x = points[:, 0], points[:, 1]
-    res = x - (a + b * t)
+    """Largest |median residual| over 15 mm stretches of an edge, mm: the points within
+    3 mm of its line (a lifted corner pulls them that far at most; a finger further)."""
+    a, b, _ = line
+    res = points[:, 1] - (a + b * points[:, 0])
+    near = np.abs(res) < 3.0
+    t, res = points[near, 0], res[near]
     worst = 0.0
     for lo in np.arange(t.min(), t.max(), 15.0):
         sel = (t >= lo) & (t < lo + 15.0)
@@ -185,7 +187,7 @@ def measure_edges(grey: np.ndarray, h_mm_to_px: np.ndarray, paper: str) -> EdgeR
             continue
         lines[side] = line
         found.append(side)
-        worst = max(worst, _bow(pts[line[2]], line))
+        worst = max(worst, _bow(pts, line))
     scales = []
     for (s1, s2), true_mm, mid in ((("left", "right"), w_mm, h_mm / 2),
                                    (("top", "bottom"), h_mm, w_mm / 2)):
