@@ -38,7 +38,8 @@ class Shot:
     ``tilt_deg``: camera axis from vertical; ``mp``: megapixels (3 or 12); ``scale``: print
     scale; ``curl``: None, ``("edge", side, length_mm, radius_mm)`` or ``("corner", corner,
     length_mm, radius_mm)``; ``finger``: index 0-3 of the mark covered, or None;
-    ``margin_mm``: table visible around the paper at the tightest side.
+    ``margin_mm``: table visible around the paper at the tightest side; ``distortion``:
+    radial lens distortion k1 (relative to the half diagonal; 0.01 moves the corners 1 %).
     """
 
     tilt_deg: float
@@ -50,6 +51,7 @@ class Shot:
     azimuth_deg: float = 0.0
     roll_deg: float = 0.0
     seed: int = 0
+    distortion: float = 0.0
 
 
 def make_pages(out_dir: Path):
@@ -240,14 +242,21 @@ def photograph(page: np.ndarray, shot: Shot, path: Path) -> Path:
     a = rng.uniform(0, 2 * math.pi)  # light falling off across the table
     vignette *= 1.0 - 0.15 * (0.5 + 0.5 * ((xx / dims[0] - 0.5) * math.cos(a)
                                            + (yy / dims[1] - 0.5) * math.sin(a)))
-    out = cv2.GaussianBlur(out * vignette.astype(np.float32), (0, 0), 0.8 + 0.4 * rng.random())
+    out = out * vignette.astype(np.float32)
+    if shot.distortion:
+        r2 = ((xx - dims[0] / 2) ** 2 + (yy - dims[1] / 2) ** 2) / ((dims[0] ** 2 + dims[1] ** 2) / 4)
+        grow = (1.0 + shot.distortion * r2).astype(np.float32)
+        out = cv2.remap(out, ((xx - dims[0] / 2) * grow + dims[0] / 2).astype(np.float32),
+                        ((yy - dims[1] / 2) * grow + dims[1] / 2).astype(np.float32),
+                        cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+    out = cv2.GaussianBlur(out, (0, 0), 0.8 + 0.4 * rng.random())
     out += rng.normal(0.0, 3.0, out.shape).astype(np.float32)
     cv2.imwrite(str(path), np.clip(out, 0, 255).astype(np.uint8),
                 [cv2.IMWRITE_JPEG_QUALITY, 90])
     return path
 
 
-def suite(count: int, seed: int) -> list[tuple[str, Shot]]:
+def suite(count: int, seed: int, distortion: float = 0.0) -> list[tuple[str, Shot]]:
     """``count`` shots over tilts 10-35 degrees, 3 and 12 MP, print scales 97-103 %: flat
     (with plenty of table or little), a finger over a mark, curled edges and corners."""
     rng = np.random.default_rng(seed)
@@ -268,7 +277,7 @@ def suite(count: int, seed: int) -> list[tuple[str, Shot]]:
             finger=int(rng.integers(4)) if "finger" in kind else None,
             margin_mm=float(rng.uniform(3, 10)) if "tight" in kind else float(rng.uniform(20, 50)),
             azimuth_deg=float(rng.uniform(0, 360)), roll_deg=float(rng.uniform(-20, 20)),
-            seed=seed * 1000 + i)))
+            seed=seed * 1000 + i, distortion=float(rng.uniform(-distortion, distortion)))))
     return shots
 
 
@@ -279,13 +288,15 @@ def main(argv=None) -> int:
     ap.add_argument("--out", type=Path, default=None, help="folder for the photos")
     ap.add_argument("--count", type=int, default=48)
     ap.add_argument("--seed", type=int, default=1)
+    ap.add_argument("--distortion", type=float, default=0.0, metavar="K1",
+                    help="radial lens distortion drawn in [-K1, K1] (default 0: none)")
     args = ap.parse_args(argv)
     out = args.out or Path(tempfile.mkdtemp(prefix="photos-"))
     out.mkdir(parents=True, exist_ok=True)
     pages = make_pages(out)
     named = flat_ok = flat_n = curled_warned = curled_n = 0
     worst_flat = 0.0
-    for i, (label, shot) in enumerate(suite(args.count, args.seed)):
+    for i, (label, shot) in enumerate(suite(args.count, args.seed, args.distortion)):
         page, _ = pages[label]
         path = photograph(page, shot, out / f"photo{i:03d}.jpg")
         t0 = time.perf_counter()
@@ -303,7 +314,8 @@ def main(argv=None) -> int:
         got = f"{check.scale * 100:.2f} %" if check.scale is not None else "-"
         print(f"{path.name} {label} tilt {shot.tilt_deg:4.1f} {shot.mp:2d} MP scale "
               f"{shot.scale * 100:5.1f} % margin {shot.margin_mm:4.1f} finger {shot.finger} "
-              f"curl {shot.curl and shot.curl[:2]} -> {check.sheet} {check.verdict.value} "
+              f"curl {shot.curl and shot.curl[:2]} k1 {shot.distortion:+.4f} -> {check.sheet} "
+              f"{check.verdict.value} "
               f"{got} marks-misfit {check.residual_mm:.3f} bow {check.bow_mm:.2f} "
               f"({wall:.1f} s)")
     total = args.count

@@ -101,8 +101,9 @@ def _profiles(img, valid, k, side, paper):
     return out, off
 
 
-def _edge_in(prof: np.ndarray, k: float) -> float | None:
-    """Sub-pixel index (from the inner end) where the bright paper gives way to the table."""
+def _edge_in(prof: np.ndarray, k: float) -> tuple[float, float] | None:
+    """Sub-pixel index (from the inner end) where the bright paper gives way to the table,
+    and the step's height in grey levels."""
     w = max(2, int(round(1.0 * k)))
     if prof.size < int(INNER_MM * k) + 2 * w:
         return None
@@ -126,7 +127,7 @@ def _edge_in(prof: np.ndarray, k: float) -> float | None:
         return None
     c = int(cross[-1])
     y0, y1 = seg[c], seg[c + 1]
-    return j0 + c + (y0 - mid) / (y0 - y1)
+    return j0 + c + (y0 - mid) / (y0 - y1), paper - dark
 
 
 def _robust_line(points: np.ndarray):
@@ -171,14 +172,17 @@ def measure_edges(grey: np.ndarray, h_mm_to_px: np.ndarray, paper: str) -> EdgeR
     worst = 0.0
     for side in ("left", "right", "top", "bottom"):
         profiles, off = _profiles(img, valid, k, side, paper)
-        pts = []
+        pts, steps = [], []
         for t, prof, start in profiles:
-            e = _edge_in(prof, k)
-            if e is None:
+            got = _edge_in(prof, k)
+            if got is None:
                 continue
             sign = -1.0 if side in ("left", "top") else 1.0
-            pts.append((t, (start + sign * e - off) / k))
+            pts.append((t, (start + sign * got[0] - off) / k))
+            steps.append(got[1])
         pts = np.asarray(pts, float).reshape(-1, 2)
+        if len(pts):  # a weaker step is something over the paper (a finger), not the table
+            pts = pts[np.asarray(steps) >= 0.6 * np.median(steps)]
         length = h_mm if side in ("left", "right") else w_mm
         if len(pts) < 0.3 * (length - 2 * END_MM) / 2.0:
             continue
