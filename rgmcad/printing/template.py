@@ -4,8 +4,9 @@ A layout's parts are projected on one plane (:mod:`~rgmcad.printing.plane`: the 
 stand on, the board they are pinned to, or an axis plane) and drawn at true scale
 (:mod:`~rgmcad.printing.drawing`, :mod:`~rgmcad.printing.labels`): each part's exact
 silhouette, its placement order and name, its height above the plane, the tilt the outline
-cannot show, and its tolerances. The drawing is cut into sheets with overlap strips
-(:mod:`~rgmcad.printing.tiling`), each sheet carrying its label, a 100 mm scale bar,
+cannot show, and its tolerances. The drawing is cut into sheets that meet on seam lines with
+matching marks (:mod:`~rgmcad.printing.tiling`, :mod:`~rgmcad.printing.seams`), each sheet
+carrying its label, a 100 mm scale bar,
 "print at 100 %" and four AprilTag 36h11 marks (:mod:`~rgmcad.printing.sheets`) from which
 :func:`rgmcad.printing.check.verify_print` recognises the sheet and measures the printer's
 scale. The first page holds an assembly map, test squares (100 mm and 1 in), the parts list
