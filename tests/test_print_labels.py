@@ -4,6 +4,7 @@ tilt and fall directions, tolerances that say what they are, a frame's tolerance
 from __future__ import annotations
 
 import math
+import re
 
 import numpy as np
 import pypdfium2 as pdfium
@@ -134,3 +135,23 @@ def test_a_run_frames_tolerance_is_stated_once_in_mm_at_its_far_end(tmp_path):
     r = scene_template(scenario, scene, tmp_path, tolerances=tol)
     text = _kept_text(r)
     assert text.count("(heading ± 2°)") == 1
+
+
+def test_every_sheet_keeps_world_coordinates_of_its_own(crowded):
+    r = crowded
+    pt = 72 / 25.4
+    doc = pdfium.PdfDocument(str(r.pdf))
+    for s in r.sheets:
+        (x0, y0), (x1, y1) = (s.to_page(s.keep_mm[0], s.keep_mm[3]),
+                              s.to_page(s.keep_mm[2], s.keep_mm[1]))
+        h = s.size_mm[1]
+        kept = doc[s.page - 1].get_textpage().get_text_bounded(
+            x0 * pt, (h - y1) * pt, x1 * pt, (h - y0) * pt)
+        ticks = re.findall(r"\b([xy]) (-?\d+)\b", kept)
+        # both axes, read where the sheet is kept (not in a strip that is cut away)
+        assert {a for a, _ in ticks} == {"x", "y"}, (s.label, kept[:200])
+        for axis, value in ticks:  # and they are this sheet's coordinates
+            u0, v0, u1, v1 = s.keep_mm
+            lo, hi = (u0, u1) if axis == "x" else (v0, v1)
+            assert lo - 1 <= int(value) <= hi + 1, (s.label, axis, value)
+    doc.close()
