@@ -155,3 +155,13 @@ def test_every_sheet_keeps_world_coordinates_of_its_own(crowded):
             lo, hi = (u0, u1) if axis == "x" else (v0, v1)
             assert lo - 1 <= int(value) <= hi + 1, (s.label, axis, value)
     doc.close()
+
+
+def test_two_dozen_parts_list_on_the_first_page(tmp_path):
+    parts = [_part(trimesh.creation.box([0.02, 0.01, 0.04]),
+                   _pose(None, (0.05 * (i % 6), 0.05 * (i // 6), 0.02)), f"domino_run[{i}]", i + 1)
+             for i in range(24)]
+    r = make_template(parts, [FLOOR], tmp_path, paper="a4")
+    assert r.n_pages == 1 + len(r.sheets)  # no page of its own for a few lines of the list
+    text = " ".join(_text(r.pdf)[0].split())
+    assert all(f"{i + 1}. domino_run[{i}] [sheet" in text for i in range(24))

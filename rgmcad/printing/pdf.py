@@ -185,22 +185,24 @@ def part_sheets(part, sheets) -> list[str]:
 
 
 def _part_rows(parts, sheets, width: float) -> list[str]:
+    """Order, name, sheets and tolerances of each part (the rest is beside its outline)."""
     rows = []
     for p in parts:
         on = part_sheets(p, sheets)
         where = f" [sheet {', '.join(on)}]" if on else ""
-        notes = "; ".join([*p.notes, *p.tolerances])
-        for i, chunk in enumerate(wrap(f"{p.order}. {p.name}{where}: {notes}", 2.2, width)):
+        tol = f": {'; '.join(p.tolerances)}" if p.tolerances else ""
+        for i, chunk in enumerate(wrap(f"{p.order}. {p.name}{where}{tol}", 2.2, width)):
             rows.append(chunk if i == 0 else "    " + chunk)
     return rows
 
 
 def _parts_list(parts, size_mm, sheets=()) -> list[list[tuple[float, float, str]]]:
     """The parts list's lines as ``(x, y, text)`` sheet mm, per page: the first page's, then
-    those of each continuation page; two columns when one would run over."""
+    those of each continuation page; in as few columns (up to three) as give the fewest
+    pages."""
     w, h = size_mm
     best = None
-    for ncol in (1, 2):
+    for ncol in (1, 2, 3):
         col_w = (w - 2 * MARGIN_MM - 4.0 * (ncol - 1)) / ncol
         pages: list[list[tuple[float, float, str]]] = [[]]
         col, y, y_top, y_bottom = 0, _PARTS_Y + 4.0, _PARTS_Y + 4.0, h - MARGIN_MM - BAND_MM
