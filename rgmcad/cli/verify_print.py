@@ -14,8 +14,7 @@ from rgmcad.cli.common import say
 
 USES_BUILD_DIR = False
 
-_METHOD = {"dpi": "the scan resolution", "sheet-edges": "the sheet edges",
-           "marks": "the marks only"}
+_METHOD = {"dpi": "the scan resolution", "sheet-edges": "the sheet edges"}
 
 
 def configure(p) -> None:
@@ -46,7 +45,7 @@ def run(args) -> int:
         }))
         return status
     paper = f", {check.paper}" if check.paper else ""
-    say(f"sheet {check.sheet}{paper} ({len(check.tag_ids)} marks, measured by "
-        f"{_METHOD[check.method]})")
+    how = f", measured by {_METHOD[check.method]}" if check.scale is not None else ""
+    say(f"sheet {check.sheet}{paper} ({len(check.tag_ids)} marks{how})")
     say(check.message)
     return status
