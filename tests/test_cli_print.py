@@ -99,14 +99,16 @@ def test_tolerances_from_a_layout_file_are_printed(tmp_path, capsys):
     }))
     out, argv = _template(tmp_path, "ballrun", "--layout", str(layout))
     assert main(argv) == 0
-    parts = {p["name"]: p["tolerances"] for p in json.loads(capsys.readouterr().out)["parts"]}
+    made = json.loads(capsys.readouterr().out)
+    parts = {p["name"]: p["tolerances"] for p in made["parts"]}
     assert parts["top_track"] == ["x ± 3 mm"]
     assert parts["goblet"] == ["roll -1/+2°"]
-    # a frame's parameter applies to the parts placed through it
-    assert parts["bottom_track"] == ["bottom_track_joint.z -2/+4 mm"]
-    assert parts["ball"] == []
+    # a frame's parameter is stated once, at the frame, not beside each of its parts
+    assert parts["bottom_track"] == [] and parts["ball"] == []
+    frames = {f["name"]: f["notes"] for f in made["frames"]}
+    assert frames == {"bottom_track_joint": ["z -2/+4 mm"]}
     svg = (out / "template.svg").read_text(encoding="utf-8")
-    assert "x ± 3 mm" in svg and "roll -1/+2°" in svg
+    assert "x ± 3 mm" in svg and "roll -1/+2°" in svg and "z -2/+4 mm" in svg
 
 
 def _raster(pdf, index, path):

@@ -81,6 +81,7 @@ def run(args) -> int:
             "parts": [{"name": p.name, "order": p.order,
                        "centroid_world": [float(v) for v in p.centroid_world],
                        "tolerances": list(p.tolerances)} for p in result.parts],
+            "frames": [{"name": f.name, "notes": list(f.notes[1:])} for f in result.frames],
             "wall_time": wall,
         }))
         return 0

@@ -14,7 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import shapely
-from shapely.geometry import LineString, MultiPolygon, Polygon
+from shapely.geometry import LineString, MultiPolygon, Point, Polygon
 from shapely.geometry import box as shapely_box
 from shapely.ops import nearest_points
 
@@ -32,7 +32,8 @@ PALETTE = (
     (0.96, 0.84, 0.70),
     (0.90, 0.90, 0.78),
 )
-"""Light fill colours of the parts (RGB in 0..1), cycled in placement order."""
+"""Light fill colours of the parts (RGB in 0..1), cycled in placement order (see
+:func:`fill_colours`)."""
 
 OUTLINE_MM = 0.25
 """Stroke width of a part's outline, mm."""
@@ -120,11 +121,25 @@ def _axis_name(direction: np.ndarray) -> str:
     return ""
 
 
-def _tilt(pose: np.ndarray, normal: np.ndarray) -> tuple[float, str]:
+def _tilt(pose: np.ndarray, normal: np.ndarray) -> tuple[float, str, np.ndarray]:
+    """Tilt (degrees) of the part axis nearest the plane's normal, its name, and the world
+    direction in the plane its end away from the plane leans towards."""
     r = np.asarray(pose, float)[:3, :3]
-    cosines = np.clip(np.abs(r.T @ normal), 0.0, 1.0)
-    i = int(np.argmax(cosines))
-    return float(np.degrees(np.arccos(cosines[i]))), "xyz"[i]
+    dots = r.T @ normal
+    i = int(np.argmax(np.abs(dots)))
+    a = r[:, i] * np.sign(dots[i] or 1.0)
+    lean = a - (a @ normal) * normal
+    return float(np.degrees(np.arccos(min(1.0, abs(dots[i]))))), "xyz"[i], lean
+
+
+def _world_direction(d: np.ndarray) -> str:
+    """``"world +y"``, or ``"world +x +y"`` for a direction between two axes."""
+    d = np.asarray(d, float) / np.linalg.norm(d)
+    big = [(abs(v), i) for i, v in enumerate(d) if abs(v) > 0.2]
+    if max(big)[0] > 0.985:
+        big = [max(big)]
+    return "world " + " ".join(("+" if d[i] > 0 else "-") + "xyz"[i] for _, i in sorted(
+        big, key=lambda t: t[1]))
 
 
 def _height_note(frame: PlaneFrame, lo_mm: float, hi_mm: float, origin_mm: float) -> str:
@@ -146,11 +161,26 @@ def _part_notes(part: PlacedPart, frame: PlaneFrame):
     h = frame.height(part.vertices) * 1000.0
     lo, hi = float(h.min()), float(h.max())
     origin = float(frame.height(np.asarray(part.pose, float)[:3, 3])[0] * 1000.0)
-    tilt, axis = _tilt(part.pose, frame.normal)
+    tilt, axis, lean = _tilt(part.pose, frame.normal)
     notes = [_height_note(frame, lo, hi, origin)]
     if tilt > 0.5:
-        notes.append(f"tilt {tilt:.1f}° out of plane (local {axis} axis vs normal)")
+        notes.append(f"tilt {tilt:.1f}° out of plane: its local {axis} axis leans towards "
+                     f"{_world_direction(lean)} (dashed arrow)")
+    if part.fall is not None:
+        notes.append(f"falls towards {_world_direction(part.fall)} (solid arrow)")
     return lo, origin, tilt, notes
+
+
+def _arrow_items(start, direction, length, dashed=False) -> list[PathItem]:
+    """An arrow from ``start`` along the unit ``direction`` (drawing mm)."""
+    d = np.asarray(direction, float)
+    tip = np.asarray(start, float) + length * d
+    side = np.array([-d[1], d[0]])
+    dash = (1.0, 0.8) if dashed else ()
+    return [PathItem((np.array([start, tip - 1.5 * d]),), closed=False, width=0.3, dash=dash,
+                     cls="arrow"),
+            PathItem((np.array([tip, tip - 2.2 * d + 0.9 * side, tip - 2.2 * d - 0.9 * side]),),
+                     fill=(0.0, 0.0, 0.0), stroke=None, cls="arrow")]
 
 
 # --- device-independent items -------------------------------------------------------------------
@@ -181,6 +211,18 @@ class TextItem:
     bold: bool = False
     anchor: str = "start"  # start | middle | end
     colour: tuple[float, float, float] = (0.0, 0.0, 0.0)
+
+
+def fill_colours(outlines, gap_mm: float = 2.0) -> list[tuple[float, float, float]]:
+    """A fill colour per outline (in order): the palette in turn, skipping colours of
+    earlier outlines within ``gap_mm``, so a part never merges into one it touches."""
+    chosen: list[int] = []
+    for k, geom in enumerate(outlines):
+        near = {chosen[j] for j in range(k) if geom.distance(outlines[j]) < gap_mm}
+        pick = next((c % len(PALETTE) for c in range(k, k + len(PALETTE))
+                     if c % len(PALETTE) not in near), k % len(PALETTE))
+        chosen.append(pick)
+    return [PALETTE[c] for c in chosen]
 
 
 def _rings(geom) -> list[np.ndarray]:
@@ -230,16 +272,21 @@ class Drawing:
     minimap: tuple  # PathItem items for the assembly map (no text)
 
 
-def build_drawing(parts, base_planes, frame: PlaneFrame) -> tuple[Drawing, tuple[PartOutline, ...]]:
+def build_drawing(parts, base_planes, frame: PlaneFrame, *, geoms=None, avoid=(),
+                  inside=None, frames=()) -> tuple[Drawing, tuple[PartOutline, ...]]:
     """The drawing of posed parts on a plane, and each part as drawn (in placement order).
 
+    ``geoms`` are the parts' silhouettes when already known (in placement order); ``avoid``
+    and ``inside`` steer the labels (see :func:`rgmcad.printing.labels.place_labels`);
+    ``frames`` (:class:`rgmcad.printing.inputs.FrameNote`) are marked at their origins with
+    their tolerances.
     Raises ``ValueError`` naming a part whose mesh projects to nothing on the plane.
     """
     parts = sorted(parts, key=lambda p: (p.order, p.name))
     outlines, infos, sizes, line_sets = [], [], [], []
-    for p in parts:
+    for k, p in enumerate(parts):
         try:
-            geom = silhouette(p.vertices, p.faces, frame)
+            geom = geoms[k] if geoms is not None else silhouette(p.vertices, p.faces, frame)
         except ValueError as exc:
             raise ValueError(f"part {p.name!r}: {exc}") from None
         lo, origin, tilt, notes = _part_notes(p, frame)
@@ -248,12 +295,18 @@ def build_drawing(parts, base_planes, frame: PlaneFrame) -> tuple[Drawing, tuple
         infos.append((lo, origin, tilt, notes))
         line_sets.append(lines)
         sizes.append(block_size(lines))
-    boxes = place_labels(outlines, sizes)
+    marks = [Point(*frame.to_drawing(f.origin)[0]).buffer(2.0) for f in frames]
+    frame_lines = [[(f.notes[0], NOTE_MM, True), *((n, NOTE_MM, False) for n in f.notes[1:])]
+                   for f in frames]
+    boxes = place_labels(outlines + marks, sizes + [block_size(x) for x in frame_lines],
+                         avoid, inside)
+    boxes, frame_boxes = boxes[:len(outlines)], boxes[len(outlines):]
 
-    fills, strokes, texts, leaders = [], [], [], []
+    colours = fill_colours(outlines)
+    fills, strokes, texts, leaders, arrows = [], [], [], [], []
     results = []
     for k, (p, geom) in enumerate(zip(parts, outlines, strict=True)):
-        rgb = PALETTE[k % len(PALETTE)]
+        rgb = colours[k]
         rings = tuple(_rings(geom))
         ident = f"part-{k + 1}"
         fills.append(PathItem(rings, fill=rgb, stroke=None, cls="part-fill", ident=ident))
@@ -268,12 +321,30 @@ def build_drawing(parts, base_planes, frame: PlaneFrame) -> tuple[Drawing, tuple
             )
         c = np.array(geom.centroid.coords[0])
         lo, origin, tilt, notes = infos[k]
+        for direction, dashed in ((p.fall, False), (_tilt(p.pose, frame.normal)[2], True)):
+            if direction is None or (dashed and tilt <= 0.5):
+                continue
+            d = np.array([direction @ frame.u_axis, direction @ frame.v_axis])
+            if np.linalg.norm(d) > 1e-6:
+                d = d / np.linalg.norm(d)
+                arrows += _arrow_items(c - 2.0 * d, d, 9.0, dashed)
         results.append(
             PartOutline(p.name, p.order, geom, c, frame.to_world(c)[0], lo, origin, tilt,
                         tuple(notes), rgb, box, tuple(p.tolerances))
         )
 
-    bounds = np.array([g.bounds for g in outlines] + list(boxes))
+    for mark, box, lines in zip(marks, frame_boxes, frame_lines, strict=True):
+        o = np.array(mark.centroid.coords[0])
+        arrows.append(PathItem((np.asarray(mark.exterior.coords)[:-1],), width=0.3,
+                               cls="frame"))
+        for d in ((1.0, 0.0), (0.0, 1.0)):
+            arrows.append(PathItem((np.array([o - 3.0 * np.array(d), o + 3.0 * np.array(d)]),),
+                                   closed=False, width=0.3, cls="frame"))
+        texts += _text_items(box, lines)
+        pb, po = nearest_points(shapely_box(*box), mark)
+        leaders.append(PathItem((np.array([[pb.x, pb.y], [po.x, po.y]]),), closed=False,
+                                stroke=(0.35, 0.35, 0.35), width=0.15, cls="leader"))
+    bounds = np.array([g.bounds for g in outlines + marks] + list(boxes) + list(frame_boxes))
     pad = 5.0
     extent = (bounds[:, 0].min() - pad, bounds[:, 1].min() - pad,
               bounds[:, 2].max() + pad, bounds[:, 3].max() + pad)
@@ -306,6 +377,6 @@ def build_drawing(parts, base_planes, frame: PlaneFrame) -> tuple[Drawing, tuple
                 texts.append(TextItem(ou + at[0], ov + at[1], name, NOTE_MM))
         texts.append(TextItem(ou + 0.8, ov - 3.0, "world origin", NOTE_MM))
 
-    items = tuple(fills + strokes + refs + leaders + texts)
+    items = tuple(fills + strokes + refs + arrows + leaders + texts)
     minimap = tuple(fills + strokes)
     return Drawing(items, extent, minimap), tuple(results)

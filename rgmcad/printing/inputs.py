@@ -23,10 +23,13 @@ writes them (read by :func:`rgmcad.scene.layout_files.read_tolerances`)::
 
 ``[down, up]`` (metres or degrees; signs are ignored; one number means symmetric) is how far
 below and above its value the parameter may be placed. They are printed beside the part as
-``x ± 3 mm`` or ``x -2/+4 mm`` (``roll ± 2°`` for angles). A parameter belongs to an object;
-the parameters of a frame (a ``part = "frame"`` object such as ``bottom_track_joint`` or a
-domino run) are printed, with the frame's name, beside every part placed through that frame
-(its descendants in the ``parent`` chain).
+``x ± 3 mm`` or ``x -2/+4 mm`` (``roll ± 2°`` for angles). The optimiser reports the
+distance to the end of the parameter's range where the learned model shows no drop; such a
+side is printed as "not limiting within the range" rather than as a sensitivity.
+
+The parameters of a frame (a ``part = "frame"`` object such as ``bottom_track_joint`` or a
+domino run) are stated once, at the frame's origin on the drawing (:class:`FrameNote`),
+an angle also as the millimetres it moves the frame's farthest part.
 """
 
 from __future__ import annotations
@@ -57,6 +60,8 @@ class PlacedPart:
         World pose of the part's frame (metres).
     tolerances : tuple of str
         Ready-made notes, e.g. ``"x ± 3 mm"``.
+    fall : (3,) float or None
+        World direction the part falls in (a domino of a run: its local +X), else None.
     """
 
     name: str
@@ -65,6 +70,19 @@ class PlacedPart:
     faces: np.ndarray
     pose: np.ndarray
     tolerances: tuple[str, ...] = ()
+    fall: np.ndarray | None = None
+
+
+@dataclass(frozen=True, eq=False)
+class FrameNote:
+    """A frame's tolerances, stated once at its origin.
+
+    ``origin`` (3,) world metres; ``notes`` e.g. ``("switch_run (9 parts)", "y ± 3 mm")``.
+    """
+
+    name: str
+    origin: np.ndarray
+    notes: tuple[str, ...]
 
 
 @dataclass(frozen=True)
@@ -87,34 +105,87 @@ def _number(v: float) -> str:
     return s.rstrip("0").rstrip(".") if "." in s else s
 
 
-def format_tolerance(label: str, component: str, down: float, up: float) -> str:
-    """``"x ± 3 mm"``, ``"x -2/+4 mm"`` or ``"roll ± 2°"`` from metres or degrees."""
+def format_tolerance(label: str, component: str, down: float, up: float,
+                     room: tuple[float, float] | None = None) -> str:
+    """``"x ± 3 mm"``, ``"x -2/+4 mm"`` or ``"roll ± 2°"`` from metres or degrees.
+
+    ``room`` is the distance from the value to each end of its range: a side whose
+    tolerance reaches it is not limited by the model, and is printed so.
+    """
     angle = component in ANGLE_KEYS
     factor, unit = (1.0, "°") if angle else (1000.0, " mm")
+    # the optimiser reports exactly the room left where the model shows no drop
+    free = [room is not None and r > 0 and abs(t - r) <= 1e-6 * max(1.0, r) for t, r in zip(
+        (down, up), room or (0.0, 0.0), strict=True)]
+    if all(free):
+        return f"{label}: not limiting within the range"
     d, u = _number(down * factor), _number(up * factor)
+    if free[0]:
+        return f"{label} +{u}{unit} (below: not limiting within the range)"
+    if free[1]:
+        return f"{label} -{d}{unit} (above: not limiting within the range)"
     if d == u:
         return f"{label} ± {d}{unit}"
     return f"{label} -{d}/+{u}{unit}"
 
 
-def part_tolerances(scenario, obj_name: str, tolerances) -> tuple[str, ...]:
-    """Notes for the body of object ``obj_name``: its own parameters first (``x ± 3 mm``),
-    then those of the frames it is placed through (``bottom_track_joint.roll ± 2°``)."""
+def _rooms(scenario, values) -> dict[str, tuple[float, float]]:
+    """``{"object.component": (value - low, high - value)}`` of the free parameters."""
+    if values is None:
+        return {}
+    return {f.name: (float(v) - f.low, f.high - float(v))
+            for f, v in zip(scenario.free, np.asarray(values, float), strict=True)}
+
+
+def part_tolerances(scenario, obj_name: str, tolerances, rooms=None) -> tuple[str, ...]:
+    """Notes for the body of object ``obj_name``: its own parameters (``x ± 3 mm``)."""
+    rooms = rooms or {}
     notes = []
-    chain = [obj_name]
-    parent = scenario.objects[obj_name].parent
-    while parent is not None:
-        chain.append(parent)
-        parent = scenario.objects[parent].parent
-    for depth, name in enumerate(chain):
-        if depth and scenario.objects[name].part != FRAME:
-            continue
-        for component in POSE_KEYS:
-            key = f"{name}.{component}"
-            if key in tolerances:
-                label = component if depth == 0 else key
-                notes.append(format_tolerance(label, component, *tolerances[key]))
+    for component in POSE_KEYS:
+        key = f"{obj_name}.{component}"
+        if key in tolerances:
+            notes.append(format_tolerance(component, component, *tolerances[key],
+                                          rooms.get(key)))
     return tuple(notes)
+
+
+def frame_notes(scenario, scene, tolerances, rooms=None) -> list[FrameNote]:
+    """A :class:`FrameNote` per frame with tolerances: translations as they are, angles also
+    as the displacement of the frame's farthest part (mm) that the angle makes."""
+    from rgmcad.scene.design_space import world_poses
+
+    rooms = rooms or {}
+    poses = world_poses(scenario, scene.values)
+    out = []
+    for name, obj in scenario.objects.items():
+        keys = [c for c in POSE_KEYS if f"{name}.{c}" in tolerances]
+        if obj.part != FRAME or not keys:
+            continue
+        pose = poses[name]
+        below = []
+        for body in scene.bodies.values():
+            chain, parent = [], body.object
+            while parent is not None:
+                chain.append(parent)
+                parent = scenario.objects[parent].parent
+            if name in chain[1:] or (body.object == name):
+                below.append(body.world_vertices())
+        notes = [f"{name}: frame of {len(below)} part{'s' if len(below) != 1 else ''}"]
+        pts = np.concatenate(below) if below else pose[:3, 3][None]
+        for c in keys:
+            down, up = tolerances[f"{name}.{c}"]
+            text = format_tolerance(c, c, down, up, rooms.get(f"{name}.{c}"))
+            if c in ANGLE_KEYS and "not limiting" not in text:
+                axis = pose[:3, {"heading": 2, "pitch": 0, "roll": 1}[c]]
+                d = pts - pose[:3, 3]
+                reach = float(np.max(np.linalg.norm(d - np.outer(d @ axis, axis), axis=1)))
+                mm = [_number(1000.0 * reach * np.radians(t)) for t in (down, up)]
+                size = f"± {mm[0]}" if mm[0] == mm[1] else f"-{mm[0]}/+{mm[1]}"
+                text = (f"turn {size} mm at its far end, {_number(1000 * reach)} mm from its "
+                        f"origin ({text})")
+            notes.append(text)
+        out.append(FrameNote(name, pose[:3, 3].copy(), tuple(notes)))
+    return out
 
 
 # --- scene -> template inputs ---------------------------------------------------------------------
@@ -135,13 +206,15 @@ def placement_order(scenario, scene) -> list[str]:
     return sorted(keys, key=keys.__getitem__)
 
 
-def template_inputs(scenario, scene, tolerances=None) -> tuple[list[PlacedPart], list[BasePlane]]:
-    """``(parts, base_planes)`` of a posed scene, parts in placement order.
+def template_inputs(scenario, scene, tolerances=None):
+    """``(parts, base_planes, frames)`` of a posed scene, parts in placement order.
 
     ``tolerances`` maps ``"object.component"`` to ``(down, up)`` in metres or degrees (see
-    the module docstring); the notes go into each part's ``tolerances``.
+    the module docstring); a part's own go into its ``tolerances``, a frame's into a
+    :class:`FrameNote`.
     """
     tolerances = tolerances or {}
+    rooms = _rooms(scenario, getattr(scene, "values", None))
     order = {name: k + 1 for k, name in enumerate(placement_order(scenario, scene))}
     parts, planes = [], []
     for body in scene.bodies.values():
@@ -149,8 +222,10 @@ def template_inputs(scenario, scene, tolerances=None) -> tuple[list[PlacedPart],
         if body.plane:
             planes.append(BasePlane(body.name, pose[:3, 3].copy(), pose[:3, 2].copy()))
             continue
+        run = getattr(scenario.objects[body.object], "run", None)
         parts.append(PlacedPart(body.name, order[body.name], body.world_vertices(),
                                 np.asarray(body.built.faces), pose,
-                                part_tolerances(scenario, body.object, tolerances)))
+                                part_tolerances(scenario, body.object, tolerances, rooms),
+                                pose[:3, 0].copy() if run else None))
     parts.sort(key=lambda p: p.order)
-    return parts, planes
+    return parts, planes, frame_notes(scenario, scene, tolerances, rooms)

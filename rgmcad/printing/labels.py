@@ -69,13 +69,15 @@ def block_size(lines) -> tuple[float, float]:
     return width, height
 
 
-def place_labels(outlines, sizes) -> list[tuple[float, float, float, float]]:
+def place_labels(outlines, sizes, avoid=(), inside=None) -> list[tuple[float, float, float, float]]:
     """Greedy label placement beside each outline, avoiding outlines and earlier labels.
 
     Candidates are tried around the outline's bounding box at growing distances; the first
-    free one wins, else the one that overlaps least.
+    free one wins, else the one that overlaps least. ``avoid`` are more areas to keep clear
+    (shapely, e.g. seam lines and their marks); a label should lie within ``inside`` (e.g.
+    the area the sheets keep), if given.
     """
-    obstacles = [o.buffer(1.0) for o in outlines]
+    obstacles = [o.buffer(1.0) for o in outlines] + list(avoid)
     bounds = [np.array(o.bounds) for o in obstacles]
     boxes: list[tuple[float, float, float, float]] = []
 
@@ -85,6 +87,8 @@ def place_labels(outlines, sizes) -> list[tuple[float, float, float, float]]:
         for g, gb in zip(obstacles, bounds, strict=True):
             if gb[0] < bb[2] and bb[0] < gb[2] and gb[1] < bb[3] and bb[1] < gb[3]:
                 cost += b.intersection(g).area
+        if inside is not None and not inside.contains(b):
+            cost += 4.0 * b.difference(inside).area + 1.0
         for x0, y0, x1, y1 in boxes:
             dx = min(bb[2], x1 + 1.0) - max(bb[0], x0 - 1.0)
             dy = min(bb[3], y1 + 1.0) - max(bb[1], y0 - 1.0)
@@ -97,7 +101,7 @@ def place_labels(outlines, sizes) -> list[tuple[float, float, float, float]]:
         cy = (by0 + by1) / 2
         cx = (bx0 + bx1) / 2
         cands = []
-        for d in (2.0, 6.0, 12.0, 20.0, 35.0, 60.0):
+        for d in (2.0, 6.0, 12.0, 20.0, 35.0, 60.0, 90.0):
             cands += [
                 (bx1 + d, cy - h / 2),
                 (bx0, by1 + d),

@@ -10,7 +10,6 @@ can be numbered before anything is written.
 
 from __future__ import annotations
 
-import math
 from pathlib import Path
 
 import numpy as np
@@ -18,14 +17,27 @@ import numpy as np
 from rgmcad.printing.drawing import Drawing, TextItem
 from rgmcad.printing.labels import font_name, pdf_safe, text_width, wrap
 from rgmcad.printing.plane import PlaneFrame
-from rgmcad.printing.sheets import (
-    BAND_MM,
-    MARGIN_MM,
-    TAG_SIDE_MM,
-    SheetInfo,
-    sheet_label,
-    tag_quads,
+from rgmcad.printing.seams import seams_of
+from rgmcad.printing.sheetpage import (
+    PRINT_NOTE,
+    bottom_band,
+    orientation_arrows,
+    tile_page,
+    top_band,
 )
+from rgmcad.printing.sheets import BAND_MM, MARGIN_MM, SheetInfo, tag_quads
+
+
+def _reaches(item, region) -> bool:
+    u0, v0, u1, v1 = region
+    if isinstance(item, TextItem):
+        w = text_width(item.text, item.size, item.bold)
+        x0 = item.x - {"middle": w / 2, "end": w}.get(item.anchor, 0.0)
+        box = (x0, item.y - item.size, x0 + w, item.y + item.size)
+    else:
+        pts = np.concatenate(item.rings)
+        box = (*pts.min(0), *pts.max(0))
+    return box[0] <= u1 and box[2] >= u0 and box[1] <= v1 and box[3] >= v0
 
 
 class _Pdf:
@@ -101,12 +113,15 @@ class _Pdf:
         c.setFillColorRGB(0, 0, 0)
         c.drawPath(p, stroke=0, fill=1)
 
-    def drawing(self, items, skip_text=False):
-        """Draw items whose coordinates are drawing mm (current transform maps them)."""
+    def drawing(self, items, skip_text=False, region=None):
+        """Draw items whose coordinates are drawing mm (current transform maps them); with
+        ``region`` ``(u0, v0, u1, v1)``, only those that reach into it."""
         from reportlab.pdfgen.canvas import FILL_EVEN_ODD
 
         c = self.c
         for it in items:
+            if region is not None and not _reaches(it, region):
+                continue
             if isinstance(it, TextItem):
                 if skip_text:
                     continue
@@ -144,126 +159,16 @@ def _page_marks(pdf: _Pdf, info: SheetInfo):
         pdf.tag(tid, info.tag_corners_mm[tid])
 
 
-def _scale_bar(pdf: _Pdf, x: float, y_down: float):
-    """A 100 mm bar of alternating 10 mm blocks, top-left at (x, y_down)."""
-    for i in range(10):
-        pdf.rect(x + 10 * i, y_down, 10.0, 2.0, fill=(0, 0, 0) if i % 2 == 0 else (1, 1, 1),
-                 stroke=None)
-    pdf.rect(x, y_down, 100.0, 2.0, fill=None, width=0.15)
-    for i in (0, 50, 100):
-        pdf.polyline([[x + i, y_down - 1.0], [x + i, y_down + 2.0]], width=0.15)
-        pdf.text(x + i, y_down - 1.6, f"{i}" + (" mm" if i == 100 else ""), 2.2,
-                 anchor="middle")
+def _frame_square(pdf, x, y_down, side, band):
+    """A square ``side`` mm across its outer edges, drawn as a filled band ``band`` wide."""
+    from reportlab.pdfgen.canvas import FILL_EVEN_ODD
 
-
-_PRINT_NOTE = "Print at 100 % / actual size \u2014 do not scale"
-
-
-def _top_band(pdf: _Pdf, label: str, lines: list[str]):
-    x0 = MARGIN_MM + TAG_SIDE_MM + 3.0
-    x1 = pdf.w - MARGIN_MM - TAG_SIDE_MM - 3.0
-    pdf.text(x0, MARGIN_MM + 7.5, label, 8.0, bold=True)
-    lx = x0 + text_width(label, 8.0, True) + 4.0
-    y = MARGIN_MM + 3.5
-    for i, line in enumerate(lines[:5]):
-        size = 2.6 if i == 0 else 2.2
-        while text_width(line, size, i == 0) > x1 - lx and len(line) > 4:
-            line = line[:-2]
-        pdf.text(lx, y, line, size, bold=(i == 0))
-        y += 1.35 * size + 0.2
-
-
-def _bottom_band(pdf: _Pdf, text: str):
-    x0 = MARGIN_MM + TAG_SIDE_MM + 5.0
-    y_bar = pdf.h - MARGIN_MM - BAND_MM + 8.0
-    _scale_bar(pdf, x0, y_bar)
-    pdf.text(x0, y_bar + 6.5, "scale bar: 100 mm", 2.0)
-    room = pdf.w - MARGIN_MM - TAG_SIDE_MM - 3.0 - (x0 + 104.0)
-    for i, chunk in enumerate(wrap(text, 2.0, room)[:4]):
-        pdf.text(x0 + 104.0, y_bar + 1.0 + 2.8 * i, chunk, 2.0)
-
-
-def _world_ticks(pdf: _Pdf, info: SheetInfo, frame: PlaneFrame):
-    """World coordinates along the window's top and left edges.
-
-    A tick every 10 mm, a label (e.g. ``x -150``) every 50 mm, for drawing axes that run
-    along a world axis; they place the sheet on the floor or board.
-    """
-    x0, y0, _, _ = info.window_mm
-    u0, v0, u1, v1 = info.region_mm
-    grey = (0.45, 0.45, 0.45)
-    for axis, along in ((frame.u_axis, "u"), (frame.v_axis, "v")):
-        i = int(np.argmax(np.abs(axis)))
-        if abs(axis[i]) < 0.999:
-            continue
-        sign, name, o = float(np.sign(axis[i])), "xyz"[i], 1000.0 * float(frame.origin[i])
-        lo, hi = (u0, u1) if along == "u" else (v0, v1)
-        wa, wb = sorted((o + sign * lo, o + sign * hi))
-        for w in range(int(math.ceil(wa / 10.0)) * 10, int(math.floor(wb / 10.0)) * 10 + 1, 10):
-            d = (w - o) * sign
-            major = w % 50 == 0
-            tick = 3.0 if major else 1.5
-            if along == "u":
-                x = x0 + (d - u0)
-                pdf.polyline([[x, y0], [x, y0 + tick]], 0.15, grey)
-                if major:
-                    pdf.text(x + 0.6, y0 + 3.2, f"{name} {w}", 1.8, colour=grey)
-            else:
-                y = y0 + (v1 - d)
-                pdf.polyline([[x0, y], [x0 + tick, y]], 0.15, grey)
-                if major:
-                    pdf.text(x0 + 3.6, y + 0.6, f"{name} {w}", 1.8, colour=grey)
-
-
-def _tile_pages(pdf, drawing, result_sheets, grid, title, overlap, paper, frame):
-    cols, rows = grid
-    for info in result_sheets:
-        w, h = info.size_mm
-        pdf.new_page(w, h)
-        c = pdf.c
-        x0, y0, x1, y1 = info.window_mm
-        u0, v0, u1, v1 = info.region_mm
-        c.saveState()
-        p = c.beginPath()
-        p.rect(x0, h - y1, x1 - x0, y1 - y0)
-        c.clipPath(p, stroke=0, fill=0)
-        c.translate(x0 - u0, (h - y1) - v0)
-        pdf.drawing(drawing.items)
-        c.restoreState()
-        # overlap strips: cut at left/top, align the neighbour's cut edge at right/bottom
-        dash_cut, dash_align = (3.0, 1.5), (0.8, 1.2)
-        if info.col > 0:
-            pdf.polyline([[x0 + overlap, y0], [x0 + overlap, y1]], 0.25, dash=dash_cut)
-            pdf.text(x0 + overlap + 1.0, y0 + 3.0, "cut", 2.0)
-        if info.row > 0:
-            pdf.polyline([[x0, y0 + overlap], [x1, y0 + overlap]], 0.25, dash=dash_cut)
-            pdf.text(x1 - 1.0, y0 + overlap - 1.0, "cut", 2.0, anchor="end")
-        if info.col < cols - 1:
-            pdf.polyline([[x1 - overlap, y0], [x1 - overlap, y1]], 0.2, (0.4, 0.4, 0.4),
-                         dash_align)
-        if info.row < rows - 1:
-            pdf.polyline([[x0, y1 - overlap], [x1, y1 - overlap]], 0.2, (0.4, 0.4, 0.4),
-                         dash_align)
-        pdf.rect(x0, y0, x1 - x0, y1 - y0, fill=None, stroke=(0.6, 0.6, 0.6), width=0.1)
-        _world_ticks(pdf, info, frame)
-        _page_marks(pdf, info)
-        neigh = []
-        for name, dc, dr in (("left", -1, 0), ("right", 1, 0), ("above", 0, -1),
-                             ("below", 0, 1)):
-            cc, rr = info.col + dc, info.row + dr
-            if 0 <= cc < cols and 0 <= rr < rows:
-                neigh.append(f"{name} {sheet_label(cc, rr)}")
-        _top_band(pdf, info.label, [
-            _PRINT_NOTE,
-            f"{title}  -  sheet {info.label} of {cols} x {rows} ({paper} {info.orientation})",
-            "neighbours: " + (", ".join(neigh) or "none"),
-            "cut along the dashed lines at left/top; lay the cut edge on the neighbour's "
-            "dotted line",
-        ])
-        ids = info.tag_ids
-        _bottom_band(pdf, f"page {info.page}; "
-                     f"marks {ids[0]}-{ids[-1]} (AprilTag 36h11) let 'rgmcad verify-print' "
-                     "check the scale; do not cover them")
+    c = pdf.c
+    p = c.beginPath()
+    p.rect(x, pdf.y(y_down + side), side, side)
+    p.rect(x + band, pdf.y(y_down + side - band), side - 2 * band, side - 2 * band)
+    c.setFillColorRGB(0.25, 0.25, 0.25)
+    c.drawPath(p, stroke=0, fill=1, fillMode=FILL_EVEN_ODD)  # the inside stays white
 
 
 # first page: y of the assembly map's box and its height, of the test squares, of the parts list
@@ -272,34 +177,57 @@ _SQUARES_Y = _MAP_Y + _MAP_H + 6.0
 _PARTS_Y = _SQUARES_Y + 100.0 + 7.0
 
 
-def _parts_list(parts, size_mm) -> list[list[tuple[float, str]]]:
-    """The parts list's lines as ``(y, text)`` sheet mm, per page: the first page's, then
-    those of each continuation page."""
-    w, h = size_mm
-    rows_text = []
+def part_sheets(part, sheets) -> list[str]:
+    """Labels of the sheets whose kept area shows some of a part's outline."""
+    from shapely.geometry import box
+
+    return [s.label for s in sheets if part.outline.intersects(box(*s.keep_mm))]
+
+
+def _part_rows(parts, sheets, width: float) -> list[str]:
+    """Order, name, sheets and tolerances of each part (the rest is beside its outline)."""
+    rows = []
     for p in parts:
-        notes = "; ".join([*p.notes, *p.tolerances])
-        for i, chunk in enumerate(wrap(f"{p.order}. {p.name}: {notes}", 2.2,
-                                       w - 2 * MARGIN_MM - 6.0)):
-            rows_text.append(chunk if i == 0 else "    " + chunk)
-    pages: list[list[tuple[float, str]]] = [[]]
-    y, y_bottom = _PARTS_Y + 4.0, h - MARGIN_MM - BAND_MM
-    for text in rows_text:
-        if y > y_bottom - 2.0:
-            pages.append([])
-            y, y_bottom = MARGIN_MM + 10.0, h - MARGIN_MM
-        pages[-1].append((y, text))
-        y += 3.0
-    return pages
+        on = part_sheets(p, sheets)
+        where = f" [sheet {', '.join(on)}]" if on else ""
+        tol = f": {'; '.join(p.tolerances)}" if p.tolerances else ""
+        for i, chunk in enumerate(wrap(f"{p.order}. {p.name}{where}{tol}", 2.2, width)):
+            rows.append(chunk if i == 0 else "    " + chunk)
+    return rows
 
 
-def cover_page_count(parts, size_mm) -> int:
+def _parts_list(parts, size_mm, sheets=()) -> list[list[tuple[float, float, str]]]:
+    """The parts list's lines as ``(x, y, text)`` sheet mm, per page: the first page's, then
+    those of each continuation page; in as few columns (up to three) as give the fewest
+    pages."""
+    w, h = size_mm
+    best = None
+    for ncol in (1, 2, 3):
+        col_w = (w - 2 * MARGIN_MM - 4.0 * (ncol - 1)) / ncol
+        pages: list[list[tuple[float, float, str]]] = [[]]
+        col, y, y_top, y_bottom = 0, _PARTS_Y + 4.0, _PARTS_Y + 4.0, h - MARGIN_MM - BAND_MM
+        for text in _part_rows(parts, sheets, col_w - 6.0):
+            if y > y_bottom - 2.0:
+                col += 1
+                y = y_top
+                if col == ncol:
+                    pages.append([])
+                    col, y_top, y_bottom = 0, MARGIN_MM + 10.0, h - MARGIN_MM
+                    y = y_top
+            pages[-1].append((MARGIN_MM + col * (col_w + 4.0), y, text))
+            y += 3.0
+        if best is None or len(pages) < len(best):
+            best = pages
+    return best
+
+
+def cover_page_count(parts, size_mm, sheets=()) -> int:
     """Pages before the tiled sheets: the first page and the parts list's continuations.
 
     ``parts`` are :class:`rgmcad.printing.drawing.PartOutline`; ``size_mm`` the first
-    page's ``(width, height)``.
+    page's ``(width, height)``; ``sheets`` the tiled sheets (the list names each part's).
     """
-    return len(_parts_list(parts, size_mm))
+    return len(_parts_list(parts, size_mm, sheets))
 
 
 def _cover_pages(pdf, drawing, parts, info: SheetInfo, sheets, grid, title, frame, paper,
@@ -311,14 +239,16 @@ def _cover_pages(pdf, drawing, parts, info: SheetInfo, sheets, grid, title, fram
     view = {"floor": "laid on the floor, seen from above",
             "board": "taped to the board, seen from the front (the parts' side)"}.get(
         frame.kind, f"plane {frame.kind}, seen from the side its normal points to")
-    _top_band(pdf, "map", [
+    top_band(pdf, "map", [
         f"{title} - assembly template (rgmcad)",
-        _PRINT_NOTE,
+        PRINT_NOTE,
         f"{cols} x {rows} sheets of {paper} {orientation} + this page; drawing at 1:1, {view}",
-        f"overlap {overlap:.0f} mm; check the test squares with a ruler before cutting",
+        f"neighbouring sheets overlap {overlap:.0f} mm and meet on a magenta seam line; "
+        "check the test square with a ruler before cutting",
     ])
-    _bottom_band(pdf, f"first page; marks {info.tag_ids[0]}-{info.tag_ids[-1]} (AprilTag "
-                      "36h11) let 'rgmcad verify-print' check the printer's scale")
+    bottom_band(pdf, f"scale bar: 100 mm; first page; marks {info.tag_ids[0]}-"
+                f"{info.tag_ids[-1]} (AprilTag 36h11) let 'rgmcad verify-print' check the "
+                "printer's scale", None)
     x0, y_top = MARGIN_MM, MARGIN_MM + BAND_MM
     ww = w - 2 * MARGIN_MM
 
@@ -337,38 +267,46 @@ def _cover_pages(pdf, drawing, parts, info: SheetInfo, sheets, grid, title, fram
     c.scale(k, k)
     pdf.drawing(drawing.minimap, skip_text=True)
     c.restoreState()
-    for s in sheets:
-        su0, sv0, su1, sv1 = s.region_mm
-        last_c, last_r = s.col == cols - 1, s.row == rows - 1
-        cu1 = su1 if last_c else su1 - overlap
-        cv0 = sv0 if last_r else sv0 + overlap
+    for s in sheets:  # what each sheet keeps once cut and laid
+        su0, sv0, su1, sv1 = s.keep_mm
         rx, ry = ox + k * (su0 - u0), box_y + k * (v1 - sv1)
-        pdf.rect(rx, ry, k * (cu1 - su0), k * (sv1 - cv0), fill=None, stroke=(0.2, 0.2, 0.8),
+        pdf.rect(rx, ry, k * (su1 - su0), k * (sv1 - sv0), fill=None, stroke=(0.2, 0.2, 0.8),
                  width=0.25)
-        pdf.text(rx + k * (cu1 - su0) / 2, ry + k * (sv1 - cv0) / 2 + 1.5, s.label, 4.0,
+        pdf.text(rx + k * (su1 - su0) / 2, ry + k * (sv1 - sv0) / 2 + 1.5, s.label, 4.0,
                  bold=True, anchor="middle", colour=(0.2, 0.2, 0.8))
 
     # test squares and legend
     sq_y = _SQUARES_Y
-    pdf.text(x0, sq_y - 1.5, "Test square: 100 mm (measure before cutting)", 2.4, bold=True)
-    pdf.rect(x0, sq_y, 100.0, 100.0, fill=None, width=0.3)
-    pdf.text(x0 + 50.0, sq_y + 52.0, "100 mm x 100 mm", 3.0, anchor="middle")
-    pdf.text(x0 + 50.0, sq_y + 57.0, "if not, reprint at 100 % / actual size", 2.2,
+    pdf.text(x0, sq_y - 1.5, "Test square: measure its OUTER edges before cutting", 2.4,
+             bold=True)
+    _frame_square(pdf, x0, sq_y, 100.0, 4.0)
+    pdf.text(x0 + 50.0, sq_y + 48.0, "outer edge to outer edge:", 2.6, anchor="middle")
+    pdf.text(x0 + 50.0, sq_y + 53.0, "100 mm x 100 mm", 3.4, bold=True, anchor="middle")
+    pdf.text(x0 + 50.0, sq_y + 58.0, "if not, reprint at 100 % / actual size", 2.2,
              anchor="middle")
     lx = x0 + 106.0
-    pdf.rect(lx, sq_y, 25.4, 25.4, fill=None, width=0.3)
-    pdf.text(lx + 12.7, sq_y + 13.5, "1 inch", 2.6, anchor="middle")
+    _frame_square(pdf, lx, sq_y, 25.4, 2.0)
+    pdf.text(lx + 12.7, sq_y + 12.0, "1 inch", 2.6, anchor="middle")
+    pdf.text(lx + 12.7, sq_y + 15.5, "outer edge", 1.8, anchor="middle")
+    orientation_arrows(pdf, lx + 40.0, sq_y + 16.0, frame)
     legend = [
         ("Legend", True),
         ("coloured outline: the part's silhouette at 1:1", False),
         ("'3. name': placement order and part name", False),
         ("bottom/back, origin: height of the part's lowest point and of its frame "
          "origin above the plane", False),
-        ("tilt: angle the outline cannot show", False),
+        ("tilt: angle the outline cannot show, and which way the part leans (dashed "
+         "arrow); solid arrow: the way a domino falls", False),
+        ("frame (circle and cross): a run's or joint's origin, with its tolerances; moving "
+         "or turning the frame moves all its parts", False),
         ("dash-dot line: a base plane (floor, board) seen edge-on", False),
-        ("dashed line: cut here; dotted line: lay the next sheet's cut edge here", False),
-        ("grey ticks along a sheet's top and left edges: world coordinates in mm "
+        ("magenta line: a seam. On the sheet to the right or below, cut along it; lay that "
+         "cut edge on the same line of the sheet to the left or above (its hatched strip "
+         "goes under), letter pairs meeting (AB on AB); tape across", False),
+        ("grey ticks along the top and left of what a sheet keeps: world coordinates in mm "
          "(e.g. 'x 150'), to place the sheets", False),
+        ("arrows 'world +x', 'world +z': the world axes along the paper's right and up",
+         False),
         ("black squares in the corners: marks for verify-print; keep them", False),
     ]
     ly = sq_y + 30.0
@@ -380,13 +318,14 @@ def _cover_pages(pdf, drawing, parts, info: SheetInfo, sheets, grid, title, fram
             ly += 2.9
 
     # parts list, continued on further pages when long
-    pdf.text(x0, _PARTS_Y, "Parts, in placement order", 2.8, bold=True)
-    for i, lines in enumerate(_parts_list(parts, (w, h))):
+    pdf.text(x0, _PARTS_Y, "Parts, in placement order [the sheets they are on]", 2.8,
+             bold=True)
+    for i, lines in enumerate(_parts_list(parts, (w, h), sheets)):
         if i:
             pdf.new_page(w, h)
             pdf.text(x0, MARGIN_MM + 5.0, f"{title} - parts, continued", 2.8, bold=True)
-        for y, text in lines:
-            pdf.text(x0, y, text, 2.2, bold=False)
+        for x, y, text in lines:
+            pdf.text(x, y, text, 2.2, bold=False)
 
 
 def write_pdf(path: Path, title: str, drawing: Drawing, parts, frame: PlaneFrame,
@@ -400,6 +339,8 @@ def write_pdf(path: Path, title: str, drawing: Drawing, parts, frame: PlaneFrame
     pdf = _Pdf(path, title)
     _cover_pages(pdf, drawing, parts, map_sheet, sheets, grid, title, frame, paper,
                  orientation, overlap_mm)
-    _tile_pages(pdf, drawing, sheets, grid, title, overlap_mm, paper, frame)
+    seams = seams_of(sheets)
+    for info in sheets:
+        tile_page(pdf, drawing, info, seams, grid, title, paper, frame)
     pdf.save()
     return pdf.pages

@@ -230,6 +230,9 @@ class SheetInfo:
         ``(x0, y0, x1, y1)`` of the drawing window, sheet mm (tiled sheets only).
     region_mm : (float, float, float, float)
         ``(u0, v0, u1, v1)`` of the drawing shown in the window, drawing mm.
+    keep_mm : (float, float, float, float)
+        ``(u0, v0, u1, v1)`` of the drawing this sheet shows once cut along its seam lines
+        and laid on its neighbours (see :mod:`rgmcad.printing.seams`), drawing mm.
     """
 
     label: str
@@ -243,6 +246,7 @@ class SheetInfo:
     tag_centres_mm: dict
     window_mm: tuple[float, float, float, float] = (0.0, 0.0, 0.0, 0.0)
     region_mm: tuple[float, float, float, float] = (0.0, 0.0, 0.0, 0.0)
+    keep_mm: tuple[float, float, float, float] = (0.0, 0.0, 0.0, 0.0)
 
     def page_to_drawing(self) -> np.ndarray:
         """(3, 3) affine map from sheet mm (y down) to drawing mm (v up) in the window."""
@@ -250,17 +254,24 @@ class SheetInfo:
         u0, _, _, v1 = self.region_mm
         return np.array([[1.0, 0.0, u0 - x0], [0.0, -1.0, v1 + y0], [0.0, 0.0, 1.0]])
 
+    def to_page(self, u: float, v: float) -> tuple[float, float]:
+        """Sheet mm (y down) of drawing point ``(u, v)`` mm."""
+        x0, y0, _, _ = self.window_mm
+        u0, _, _, v1 = self.region_mm
+        return x0 + (u - u0), y0 + (v1 - v)
+
 
 def sheet_info(label, col, row, page, paper, orientation, slot, window=None,
-               region=None) -> SheetInfo:
+               region=None, keep=None) -> SheetInfo:
     """The :class:`SheetInfo` of a page: its marks from the paper and the slot alone.
 
-    ``window`` and ``region`` (tiled sheets only) are ``window_mm`` and ``region_mm``.
+    ``window``, ``region`` and ``keep`` (tiled sheets only) are ``window_mm``,
+    ``region_mm`` and ``keep_mm``.
     """
     marks = sheet_marks(paper, orientation, slot)
     centres = {i: tuple(float(v) for v in c.mean(0)) for i, c in marks.items()}
     extra = {}
     if window is not None:
-        extra = {"window_mm": window, "region_mm": region}
+        extra = {"window_mm": window, "region_mm": region, "keep_mm": keep or region}
     return SheetInfo(label, col, row, page, orientation, page_size_mm(paper, orientation),
                      tuple(marks), marks, centres, **extra)

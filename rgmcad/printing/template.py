@@ -4,8 +4,9 @@ A layout's parts are projected on one plane (:mod:`~rgmcad.printing.plane`: the 
 stand on, the board they are pinned to, or an axis plane) and drawn at true scale
 (:mod:`~rgmcad.printing.drawing`, :mod:`~rgmcad.printing.labels`): each part's exact
 silhouette, its placement order and name, its height above the plane, the tilt the outline
-cannot show, and its tolerances. The drawing is cut into sheets with overlap strips
-(:mod:`~rgmcad.printing.tiling`), each sheet carrying its label, a 100 mm scale bar,
+cannot show, and its tolerances. The drawing is cut into sheets that meet on seam lines with
+matching marks (:mod:`~rgmcad.printing.tiling`, :mod:`~rgmcad.printing.seams`), each sheet
+carrying its label, a 100 mm scale bar,
 "print at 100 %" and four AprilTag 36h11 marks (:mod:`~rgmcad.printing.sheets`) from which
 :func:`rgmcad.printing.check.verify_print` recognises the sheet and measures the printer's
 scale. The first page holds an assembly map, test squares (100 mm and 1 in), the parts list
@@ -24,6 +25,7 @@ from rgmcad.printing.drawing import PartOutline, build_drawing
 from rgmcad.printing.inputs import template_inputs
 from rgmcad.printing.pdf import cover_page_count, write_pdf
 from rgmcad.printing.plane import PlaneFrame, resolve_plane
+from rgmcad.printing.seams import label_keepouts, seams_of
 from rgmcad.printing.sheets import MAP_SLOT, SheetInfo, sheet_info
 from rgmcad.printing.svg import write_svg
 from rgmcad.printing.tiling import choose_paper, tile_sheets
@@ -65,6 +67,8 @@ class TemplateResult:
         Width of the strips neighbouring sheets share, mm.
     n_pages : int
         Pages in the PDF: the first page, parts-list continuation pages, the sheets.
+    frames : tuple of FrameNote
+        Frames whose tolerances are marked at their origin.
     """
 
     pdf: Path
@@ -82,11 +86,12 @@ class TemplateResult:
     extent_mm: tuple[float, float, float, float]
     overlap_mm: float
     n_pages: int = 0
+    frames: tuple = ()
 
 
 def make_template(parts, base_planes, out_dir, *, plane: str | None = None,
                   paper: str | None = None, orientation: str | None = None,
-                  overlap_mm: float = 12.0, title: str = "") -> TemplateResult:
+                  overlap_mm: float = 12.0, title: str = "", frames=()) -> TemplateResult:
     """Write a printable 1:1 tiled assembly template of a posed layout.
 
     Parameters
@@ -110,6 +115,8 @@ def make_template(parts, base_planes, out_dir, *, plane: str | None = None,
         Width of the strips neighbouring sheets share, mm.
     title : str
         Printed on every page.
+    frames : sequence of FrameNote
+        Frames whose tolerances are stated once, at their origin.
 
     Returns
     -------
@@ -128,7 +135,7 @@ def make_template(parts, base_planes, out_dir, *, plane: str | None = None,
     out_dir.mkdir(parents=True, exist_ok=True)
     title = title or "rgmcad layout"
     frame = resolve_plane(parts, base_planes, plane)
-    drawing, outlines = build_drawing(parts, base_planes, frame)
+    drawing, outlines = build_drawing(parts, base_planes, frame, frames=frames)
     u0, v0, u1, v1 = drawing.extent
     width, height = u1 - u0, v1 - v0
     paper, orientation, cols, rows = choose_paper(width, height, paper, orientation,
@@ -138,8 +145,17 @@ def make_template(parts, base_planes, out_dir, *, plane: str | None = None,
 
     # pages: the first page (and parts-list continuation pages), then sheets row by row
     map_info = sheet_info("map", -1, -1, 1, paper, "portrait", MAP_SLOT)
-    first = cover_page_count(outlines, map_info.size_mm) + 1
-    sheets = tile_sheets(drawing.extent, paper, orientation, (cols, rows), overlap_mm, first)
+    # the sheets cover the first drawing; its labels are then placed again, clear of the
+    # seams and inside what the sheets keep
+    tiled = drawing.extent
+    sheets = tile_sheets(tiled, paper, orientation, (cols, rows), overlap_mm, 2)
+    if len(sheets) > 1:
+        avoid, inside = label_keepouts(sheets, seams_of(sheets))
+        drawing, outlines = build_drawing(parts, base_planes, frame, avoid=avoid, inside=inside,
+                                          geoms=[o.outline for o in outlines], frames=frames)
+    # the parts list names each part's sheets, and its length numbers the sheets' pages
+    first = cover_page_count(outlines, map_info.size_mm, sheets) + 1
+    sheets = tile_sheets(tiled, paper, orientation, (cols, rows), overlap_mm, first)
     pdf_path, svg_path = out_dir / "template.pdf", out_dir / "template.svg"
     n_pages = write_pdf(pdf_path, title, drawing, outlines, frame, map_info, sheets,
                         (cols, rows), paper, orientation, overlap_mm)
@@ -152,6 +168,7 @@ def make_template(parts, base_planes, out_dir, *, plane: str | None = None,
         orientation=orientation, grid=(cols, rows), sheet_labels=tuple(s.label for s in sheets),
         sheets=sheets, map_sheet=map_info, tag_centres=centres, parts=outlines,
         extent_mm=drawing.extent, overlap_mm=float(overlap_mm), n_pages=n_pages,
+        frames=tuple(frames),
     )
 
 
@@ -165,10 +182,10 @@ def scene_template(scenario, scene, out_dir, *, tolerances=None, plane: str | No
     overlap out of range or a drawing too big for the paper raise :class:`ScenarioError`
     naming the scenario file.
     """
-    parts, planes = template_inputs(scenario, scene, tolerances)
+    parts, planes, frames = template_inputs(scenario, scene, tolerances)
     try:
         return make_template(parts, planes, out_dir, plane=plane, paper=paper,
-                             overlap_mm=overlap_mm, title=title)
+                             overlap_mm=overlap_mm, title=title, frames=frames)
     except RgmcadError:
         raise
     except ValueError as exc:

@@ -1,6 +1,7 @@
 """Tiling a drawing over sheets of paper: how many sheets, of which paper, and what each shows.
 
-Neighbouring sheets share a strip of ``overlap_mm`` (cut off one, laid over the other), so
+Neighbouring sheets share a strip of ``overlap_mm`` (one seam line through its middle, see
+:mod:`rgmcad.printing.seams`), so
 ``n`` sheets cover ``n * (window - overlap) + overlap`` along a side; the grid is centred on
 the drawing. Sheets go in page order, row by row from the top-left ``"A1"``.
 """
@@ -9,6 +10,7 @@ from __future__ import annotations
 
 import math
 
+from rgmcad.printing.seams import keep_area
 from rgmcad.printing.sheets import (
     BAND_MM,
     MARGIN_MM,
@@ -103,6 +105,7 @@ def tile_sheets(extent_mm, paper: str, orientation: str, grid: tuple[int, int],
         for c in range(cols):
             ru0, rv1 = left + c * sx, top - r * sy
             region = (ru0, rv1 - wh, ru0 + ww, rv1)
+            keep = keep_area(region, c, r, grid, overlap_mm)
             sheets.append(sheet_info(sheet_label(c, r), c, r, first_page + len(sheets), paper,
-                                     orientation, sheet_slot(c, r), window, region))
+                                     orientation, sheet_slot(c, r), window, region, keep))
     return tuple(sheets)
