@@ -100,13 +100,19 @@ def test_tolerances_from_a_layout_file_are_printed(tmp_path, capsys):
     out, argv = _template(tmp_path, "ballrun", "--layout", str(layout))
     assert main(argv) == 0
     made = json.loads(capsys.readouterr().out)
-    parts = {p["name"]: p["tolerances"] for p in made["parts"]}
+    parts = {p["name"]: p["notes"] for p in made["parts"]}
     assert parts["top_track"] == ["x ± 3 mm"]
     assert parts["goblet"] == ["roll -1/+2°"]
     # a frame's parameter is stated once, at the frame, not beside each of its parts
     assert parts["bottom_track"] == [] and parts["ball"] == []
     frames = {f["name"]: f["notes"] for f in made["frames"]}
     assert frames == {"bottom_track_joint": ["z -2/+4 mm"]}
+    # and as numbers, the mapping the layout file gave (README: `tolerances`)
+    numbers = {p["name"]: p["tolerances"] for p in made["parts"]}
+    assert numbers["top_track"] == {"top_track.x": [0.003, 0.003]}
+    assert numbers["goblet"] == {"goblet.roll": [1.0, 2.0]} and numbers["ball"] == {}
+    assert {f["name"]: f["tolerances"] for f in made["frames"]} == {
+        "bottom_track_joint": {"bottom_track_joint.z": [0.002, 0.004]}}
     svg = (out / "template.svg").read_text(encoding="utf-8")
     assert "x ± 3 mm" in svg and "roll -1/+2°" in svg and "z -2/+4 mm" in svg
 

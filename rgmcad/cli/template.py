@@ -80,8 +80,10 @@ def run(args) -> int:
             "overlap_mm": result.overlap_mm,
             "parts": [{"name": p.name, "order": p.order,
                        "centroid_world": [float(v) for v in p.centroid_world],
-                       "tolerances": list(p.tolerances)} for p in result.parts],
-            "frames": [{"name": f.name, "notes": list(f.notes[1:])} for f in result.frames],
+                       "tolerances": _own(tolerances, p.name), "notes": list(p.tolerances)}
+                      for p in result.parts],
+            "frames": [{"name": f.name, "tolerances": _own(tolerances, f.name),
+                        "notes": list(f.notes[1:])} for f in result.frames],
             "wall_time": wall,
         }))
         return 0
@@ -99,3 +101,10 @@ def run(args) -> int:
         "rgmcad verify-print PHOTO.jpg")
     say(f"done in {wall:.1f} s")
     return 0
+
+
+def _own(tolerances, name: str) -> dict:
+    """The layout file's tolerances of object ``name``'s parameters: ``{parameter: [down,
+    up]}`` in metres and degrees, as the file gives them."""
+    return {key: [float(v) for v in value] for key, value in tolerances.items()
+            if key.partition(".")[0] == name}
