@@ -114,3 +114,25 @@ def write_replay_html(path: str | Path, replay: Replay) -> Path:
     path = Path(path)
     path.write_text(html_page(replay.title, body, payload), encoding="utf-8")
     return path
+
+
+def simulate_to_html(scenario, values, parts, path: str | Path, *, title: str | None = None,
+                     rate: float | None = None):
+    """Simulate a layout, recording it, and write its replay page to ``path``; returns the
+    :class:`~rgmcad.sim.run.SimulationResult`. An invalid layout (not simulated) gets a page
+    without a 3D view."""
+    from rgmcad.viewer.recording import DEFAULT_RATE, record_replay
+
+    result, replay = record_replay(scenario, values, parts, title=title,
+                                   rate=DEFAULT_RATE if rate is None else rate)
+    if replay is not None:
+        write_replay_html(path, replay)
+        return result
+    overlaps = "".join(f"<li>{escape(o.first)} and {escape(o.second)} overlap by "
+                       f"{o.depth * 1000:.2f} mm</li>" for o in result.validity.overlaps)
+    Path(path).write_text(
+        f'<!DOCTYPE html><html lang="en"><head><meta charset="utf-8"><title>'
+        f"{escape(title or scenario.name)}</title></head><body><h1>{escape(title or scenario.name)}"
+        f"</h1><p>This layout is invalid: its parts overlap at the start, so it was not "
+        f"simulated.</p><ul>{overlaps}</ul></body></html>\n", encoding="utf-8")
+    return result

@@ -109,7 +109,7 @@ def record_replay(scenario: Scenario, values, parts: Mapping, *, rate: float = D
     scene = scene_of[0]
     keys: dict[int, int] = {}
     meshes, mesh_of, static, colors, planes = [], [], [], [], []
-    for i, (name, body) in enumerate(scene.bodies.items()):
+    for i, body in enumerate(scene.bodies.values()):
         if body.plane:
             planes.append(np.asarray(body.pose, float))
             continue
