@@ -21,8 +21,6 @@ from rgmcad.cli.common import (
 __all__ = ["configure", "run"]
 
 
-
-
 def configure(p: argparse.ArgumentParser) -> None:
     add_scenario_arg(p)
     p.add_argument("--run", dest="run_dir", metavar="DIR", help="run directory (default: "
@@ -83,6 +81,7 @@ def run(args) -> int:
     from rgmcad.cli.paths import output_dir
     from rgmcad.runs.checks import MAX_SEED, check_range, check_workers
     from rgmcad.runs.workflow import optimize_scenario
+    from rgmcad.viewer.report import write_run_report
 
     check_range(args.seed, 0, MAX_SEED, "--seed", "a seed")
     check_workers(args.workers)
@@ -98,6 +97,8 @@ def run(args) -> int:
                                  batch=args.batch)
     finally:
         bar.close()
+    write_run_report(done.run_dir, args.scenario, build_dir=args.build_dir,
+                     parts_dir=parts_dir_arg(args))
     if done.finished_before:
         sys.stderr.write(f"{done.run_dir}: finished already; showing its result\n")
     show(done.summary, args.json, done.wall_time if done.finished_before else None)
@@ -125,4 +126,4 @@ def show(summary: dict, as_json: bool, wall_time: float | None = None) -> None:
         k = 1.0 if unit == "deg" else 1000.0
         say(f"  {name:24s} {summary['values'][name] * k:9.2f} {unit:3s}  "
             f"-{down * k:.2f} / +{up * k:.2f}")
-    say(f"report: {Path(summary['run']) / 'report.md'}")
+    say(f"report: {Path(summary['run']) / 'report.html'} (and report.md)")

@@ -80,12 +80,17 @@ def _decode_last_time(payload: dict) -> float:
     return float(times[-1]) if len(times) else 0.0
 
 
-def html_page(title: str, body: str, payload: dict) -> str:
-    """A whole page: ``body`` (HTML holding :func:`replay_section`), the recorded run
-    ``payload`` and the viewer's code."""
-    data = json.dumps(payload, separators=(",", ":")).replace("<", "\\u003c")
-    scripts = "\n".join(f'<script type="text/plain" id="{i}">{_inert(_asset(f))}</script>'
-                        for i, f in _SCRIPTS.items())
+def html_page(title: str, body: str, payload: dict | None) -> str:
+    """A whole page: ``body`` (HTML holding :func:`replay_section` unless ``payload`` is
+    None), the recorded run ``payload`` and the viewer's code."""
+    scripts = ""
+    if payload is not None:
+        data = json.dumps(payload, separators=(",", ":")).replace("<", "\\u003c")
+        scripts = "\n".join(
+            [f'<script type="application/json" id="rgmcad-replay-data">{data}</script>']
+            + [f'<script type="text/plain" id="{i}">{_inert(_asset(f))}</script>'
+               for i, f in _SCRIPTS.items()]
+            + [f"<script>{_inert(_asset('assets/loader.js'))}</script>"])
     return f"""<!DOCTYPE html>
 <html lang="en"><head><meta charset="utf-8">
 <meta name="viewport" content="width=device-width, initial-scale=1">
@@ -97,9 +102,7 @@ def html_page(title: str, body: str, payload: dict) -> str:
 <p class="muted">Drag to turn the view, scroll to zoom, right-drag to pan; space plays or
 pauses. 3D view by three.js (MIT licence, bundled in this file).</p>
 </main>
-<script type="application/json" id="rgmcad-replay-data">{data}</script>
 {scripts}
-<script>{_inert(_asset("assets/loader.js"))}</script>
 </body></html>
 """
 
