@@ -125,7 +125,7 @@ function showTime() {
   ui.play.textContent = state.playing ? 'Pause' : 'Play';
   for (const el of ui.events) {
     const time = el.dataset.time === '' ? null : Number(el.dataset.time);
-    const reached = time !== null && state.t >= time - 1e-9;
+    const reached = time !== null && state.t >= time - 1e-6;  // frame times are float32
     el.classList.toggle('lit', reached && el.dataset.state === 'success');
     el.classList.toggle('failed', reached && el.dataset.state === 'failure');
   }
@@ -155,7 +155,11 @@ function tick(now) {
 }
 
 ui.play.addEventListener('click', () => { state.playing = !state.playing; if (state.playing && state.t >= duration) state.t = 0; });
-ui.scrub.addEventListener('input', () => { state.t = (Number(ui.scrub.value) / 1000) * duration; });
+ui.scrub.addEventListener('input', () => {
+  state.t = (Number(ui.scrub.value) / 1000) * duration;
+  pose(state.t);
+  showTime();
+});
 for (const button of ui.speeds) {
   button.addEventListener('click', () => {
     state.speed = Number(button.dataset.speed);
@@ -175,7 +179,7 @@ window.rgmcadViewer = {
   playing: () => state.playing,
   play: () => { state.playing = true; },
   pause: () => { state.playing = false; },
-  seek: (t) => { state.t = Math.min(Math.max(t, 0), duration); },
+  seek: (t) => { state.t = Math.min(Math.max(t, 0), duration); pose(state.t); showTime(); },
   setSpeed: (s) => { state.speed = s; },
 };
 root.dataset.ready = '1';
