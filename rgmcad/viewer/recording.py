@@ -154,10 +154,11 @@ def replay_payload(replay: Replay) -> dict:
     moving = np.flatnonzero(~replay.static)
     points = [transform_points(replay.poses[0, b], replay.meshes[replay.mesh_of[b]][0])
               for b in range(len(replay.bodies))]
-    points.append(replay.poses[:, moving, :3, 3].reshape(-1, 3))
-    cloud = np.vstack(points)
-    lo, hi = cloud.min(axis=0), cloud.max(axis=0)
-    centre, half = (lo + hi) / 2, np.maximum((hi - lo) / 2, 1e-6)
+    layout = np.vstack(points)  # the view frames the layout; bodies may fall far from it
+    lo, hi = layout.min(axis=0), layout.max(axis=0)
+    cloud = np.vstack([layout, replay.poses[:, moving, :3, 3].reshape(-1, 3)])
+    a, b = cloud.min(axis=0), cloud.max(axis=0)
+    centre, half = (a + b) / 2, np.maximum((b - a) / 2, 1e-6)
     track = replay.poses[:, moving]
     pos = np.round((track[..., :3, 3] - centre) / half * _Q)
     quat = np.round(_quaternions(track[..., :3, :3]) * _Q)

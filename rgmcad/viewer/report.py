@@ -136,9 +136,9 @@ def _figures(run_dir: Path) -> str:
         if not path.is_file():
             continue
         data = base64.b64encode(path.read_bytes()).decode("ascii")
-        out.append(f'<figure><img src="data:image/png;base64,{data}" alt="{escape(name)}" '
-                   f'style="max-width:100%"><figcaption>{escape(caption)}</figcaption></figure>')
-    return "<h2>Figures</h2>" + "".join(out) if out else ""
+        out.append(f'<figure><img src="data:image/png;base64,{data}" alt="{escape(name)}">'
+                   f"<figcaption>{escape(caption)}</figcaption></figure>")
+    return f'<h2>Figures</h2><div class="figures">{"".join(out)}</div>' if out else ""
 
 
 def _template(run_dir: Path, scenario, s: dict) -> str:

@@ -40,7 +40,7 @@ const geometries = data.meshes.map((m) => {
 });
 const objects = data.bodies.map((b) => {
   const material = new THREE.MeshStandardMaterial({
-    color: new THREE.Color(...b.color), flatShading: true, roughness: 0.65, metalness: 0.05 });
+    color: new THREE.Color().setRGB(...b.color, THREE.SRGBColorSpace), flatShading: true, roughness: 0.65, metalness: 0.05 });
   const mesh = new THREE.Mesh(geometries[b.mesh], material);
   mesh.position.set(...b.position);
   mesh.quaternion.set(...b.quaternion);
@@ -71,8 +71,9 @@ camera.up.set(0, 0, 1);
 const vertical = data.planes.map((p) => new THREE.Vector3(p[8], p[9], p[10])).find((n) => Math.abs(n.z) < 0.5);
 const direction = vertical ? vertical.clone().add(new THREE.Vector3(0, 0, 0.15)) : new THREE.Vector3(0.35, -1.0, 0.75);
 direction.normalize();
-camera.position.copy(centre.clone().add(direction.multiplyScalar(radius / Math.tan(THREE.MathUtils.degToRad(20)) * 0.8)));
-sun.position.copy(centre.clone().add(new THREE.Vector3(0.4, -0.6, 1.0).multiplyScalar(radius * 4)));
+camera.position.copy(centre.clone().add(direction.clone().multiplyScalar(radius / Math.tan(THREE.MathUtils.degToRad(20)) * 0.8)));
+// light from above and behind the viewer's first position, so the faces it looks at are lit
+sun.position.copy(centre.clone().add(direction.clone().add(new THREE.Vector3(0.3, 0, 1)).multiplyScalar(radius * 4)));
 sun.target.position.copy(centre);
 scene.add(sun.target);
 const controls = new OrbitControls(camera, renderer.domElement);
