@@ -18,6 +18,8 @@ _SCRIPTS = {  # element id -> packaged file
     "rgmcad-orbit": "vendor/OrbitControls.js",
     "rgmcad-viewer": "assets/viewer.js",
 }
+_HELP = ('<p class="muted">Drag to turn the view, scroll to zoom, right-drag to pan; space '
+         "plays or pauses. 3D view by three.js (MIT licence, bundled in this file).</p>")
 SPEEDS = (("1x", 1.0), ("1/4x", 0.25), ("1/10x", 0.1))
 
 
@@ -99,8 +101,7 @@ def html_page(title: str, body: str, payload: dict | None) -> str:
 <style>{_asset("assets/viewer.css")}</style>
 </head><body><main>
 {body}
-<p class="muted">Drag to turn the view, scroll to zoom, right-drag to pan; space plays or
-pauses. 3D view by three.js (MIT licence, bundled in this file).</p>
+{_HELP if payload is not None else ""}
 </main>
 {scripts}
 </body></html>
@@ -133,9 +134,8 @@ def simulate_to_html(scenario, values, parts, path: str | Path, *, title: str | 
         return result
     overlaps = "".join(f"<li>{escape(o.first)} and {escape(o.second)} overlap by "
                        f"{o.depth * 1000:.2f} mm</li>" for o in result.validity.overlaps)
-    Path(path).write_text(
-        f'<!DOCTYPE html><html lang="en"><head><meta charset="utf-8"><title>'
-        f"{escape(title or scenario.name)}</title></head><body><h1>{escape(title or scenario.name)}"
-        f"</h1><p>This layout is invalid: its parts overlap at the start, so it was not "
-        f"simulated.</p><ul>{overlaps}</ul></body></html>\n", encoding="utf-8")
+    title = title or scenario.name
+    body = (f"<h1>{escape(title)}</h1><p>This layout is invalid: its parts overlap at the "
+            f"start, so it was not simulated.</p><ul>{overlaps}</ul>")
+    Path(path).write_text(html_page(title, body, None), encoding="utf-8")
     return result
