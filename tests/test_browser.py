@@ -93,7 +93,10 @@ def test_the_3d_view_is_drawn(browser, replay):
         image = _canvas(page)
         assert image.shape[0] > 200 and image.shape[1] > 300
         colours = len(np.unique(image.reshape(-1, 3), axis=0))
-        assert image.std() > 10 and colours > 50  # shaded parts, not a blank or flat canvas
+        assert image.std() > 10 and colours > 50  # shaded, not a blank or flat canvas
+        # the moving parts are drawn in colour; the floor, grid and background are grey
+        saturation = image.max(axis=2) - image.min(axis=2)
+        assert (saturation > 60).mean() > 0.002
 
 
 def test_two_screenshots_a_second_apart_differ_while_playing(browser, replay):

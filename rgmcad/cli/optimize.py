@@ -126,4 +126,5 @@ def show(summary: dict, as_json: bool, wall_time: float | None = None) -> None:
         k = 1.0 if unit == "deg" else 1000.0
         say(f"  {name:24s} {summary['values'][name] * k:9.2f} {unit:3s}  "
             f"-{down * k:.2f} / +{up * k:.2f}")
-    say(f"report: {Path(summary['run']) / 'report.html'} (and report.md)")
+    run = Path(summary["run"])
+    say(f"report: {run / 'report.html'} (as text: {run / 'report.md'})")

@@ -28,8 +28,11 @@ def _asset(name: str) -> str:
 
 
 def _inert(text: str) -> str:
-    """Text that cannot close the ``<script>`` element holding it."""
-    return text.replace("</", "<\\/")
+    """Script text that cannot close the ``<script>`` element holding it: the shipped scripts
+    hold no ``</``; one that did would be refused here rather than break the page."""
+    if "</" in text:
+        raise ValueError("a script holding '</' cannot be embedded in a page as it is")
+    return text
 
 
 def _event_time(e: dict) -> str:
@@ -40,7 +43,7 @@ def replay_section(payload: dict) -> str:
     """The viewer: 3D view, playback controls and the event timeline of ``payload``
     (:func:`~rgmcad.viewer.recording.replay_payload`)."""
     events = payload["events"]
-    duration = max(float(_decode_last_time(payload)), 1e-9)
+    duration = max(payload["duration"], 1e-9)
     marks, items = [], []
     for e in sorted(events, key=lambda e: (e["time"] is None, e["time"] or 0.0)):
         name, state, when = escape(e["name"]), escape(e["state"]), _event_time(e)
@@ -71,15 +74,6 @@ def replay_section(payload: dict) -> str:
 <div class="track">{"".join(marks)}<span class="playhead"></span></div>
 <ul class="events">{"".join(items)}</ul>
 </section>"""
-
-
-def _decode_last_time(payload: dict) -> float:
-    import base64
-
-    import numpy as np
-
-    times = np.frombuffer(base64.b64decode(payload["times"]), "<f4")
-    return float(times[-1]) if len(times) else 0.0
 
 
 def html_page(title: str, body: str, payload: dict | None) -> str:

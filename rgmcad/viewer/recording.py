@@ -181,6 +181,7 @@ def replay_payload(replay: Replay) -> dict:
         "planes": [[float(v) for v in p.T.ravel()] for p in replay.planes],  # column-major
         "bounds": [lo.tolist(), hi.tolist()],
         "times": _b64(replay.times, "f4"),
+        "duration": float(replay.times[-1]),
         "frames": len(replay.times),
         "moving": [int(b) for b in moving],
         "centre": centre.tolist(),
