@@ -101,11 +101,14 @@ def test_the_3d_view_is_drawn(browser, replay):
 
 def test_two_screenshots_a_second_apart_differ_while_playing(browser, replay):
     with _open(browser, replay) as (page, _):
-        _viewer(page, "setSpeed(0.25)")
+        page.uncheck("#rgmcad-replay .loop")  # no wrapping round to the same picture
+        page.click("#rgmcad-replay .speed >> text='1/10x'")  # the run lasts 5.8 s of playing
+        _viewer(page, "seek(0)")
         _viewer(page, "play()")
-        first = _canvas(page)
+        first, t_first = _canvas(page), _viewer(page, "time()")
         page.wait_for_timeout(1000)
-        second = _canvas(page)
+        second, t_second = _canvas(page), _viewer(page, "time()")
+        assert t_second > t_first and _viewer(page, "playing()")
         assert np.abs(first - second).max() > 50
         page.click("#rgmcad-replay .play")  # pause: the picture stands still
         assert not _viewer(page, "playing()")
