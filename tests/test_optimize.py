@@ -124,7 +124,7 @@ def test_the_command_prints_a_summary(reference, capsys):
     out = capsys.readouterr().out
     assert f"{summary['scenario']}: {summary['layout']}" in out
     assert all(name in out for name in summary["tolerances"])
-    assert str(run / "report.md") in out
+    assert str(run / "report.md") in out and str(run / "report.html") in out
     show(summary, as_json=True, wall_time=0.5)
     shown = json.loads(capsys.readouterr().out)
     assert shown == {**summary, "wall_time_this_call": 0.5}

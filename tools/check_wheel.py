@@ -5,7 +5,8 @@ another directory, as a user who ran ``pip install rgmcad`` would.
 
 Builds the wheel (``uv build``), makes a virtual environment in a temporary folder, installs
 the wheel there, then, from an empty working directory: ``rgmcad simulate simple --json`` (a
-shipped scenario by name) must succeed, ``rgmcad check ballrun`` must list the shipped
+shipped scenario by name) must succeed, ``--html`` must write a replay page holding the
+vendored three.js, ``rgmcad check ballrun`` must list the shipped
 layouts, and ``rgmcad build parts --out parts-out`` must write a manifest of every shipped
 part. Prints one line per check; exits 1 if one fails.
 """
@@ -61,6 +62,11 @@ def main() -> int:
         out = [line for line in done.stdout.splitlines() if line.startswith("{")]
         check("rgmcad simulate simple (shipped scenario by name, from another directory)",
               done.returncode == 0 and out and json.loads(out[-1])["outcome"] == "success")
+        done = run([rgmcad, "simulate", "simple", "--html", "replay.html"], work, env)
+        page = work / "replay.html"
+        check("rgmcad simulate simple --html (the viewer's three.js and assets are packaged)",
+              done.returncode == 0 and page.exists()
+              and "Three.js Authors" in page.read_text() and "rgmcadViewer" in page.read_text())
         done = run([rgmcad, "check", "ballrun"], work, env)
         check("rgmcad check ballrun", done.returncode == 0 and "solved: valid" in done.stdout)
         done = run([rgmcad, "build", "parts", "--out", "parts-out"], work, env)

@@ -45,6 +45,7 @@ def run(args) -> int:
     from rgmcad.cli.paths import output_dir
     from rgmcad.runs.checks import MAX_SEED, check_range, check_workers
     from rgmcad.runs.workflow import LAYOUT_FILE, optimize_scenario
+    from rgmcad.viewer.report import write_run_report
 
     check_range(args.seed, 0, MAX_SEED, "--seed", "a seed")
     check_workers(args.workers)
@@ -60,6 +61,8 @@ def run(args) -> int:
                                  batch=args.batch)
     finally:
         bar.close()
+    write_run_report(done.run_dir, args.scenario, build_dir=args.build_dir,
+                     parts_dir=parts_dir_arg(args))
     if done.finished_before and not args.quiet:
         sys.stderr.write(f"{done.run_dir}: finished already; showing its result\n")
     layout = done.run_dir / LAYOUT_FILE  # where the run is now, not where it was made
@@ -92,5 +95,6 @@ def show(summary: dict, as_json: bool, wall_time: float | None = None) -> None:
         k = 1.0 if unit == "deg" else 1000.0
         say(f"  {name:24s} {summary['values'][name] * k:9.2f} {unit:3s}  "
             f"-{down * k:.2f} / +{up * k:.2f}")
-    say(f"report: {Path(summary['run']) / 'report.md'}; the layout as CAD: "
-        f"{', '.join(str(Path(summary['run']) / n) for n in RUN_FILES)}")
+    run = Path(summary["run"])
+    say(f"report: {run / 'report.html'} (as text: {run / 'report.md'}); the layout as CAD: "
+        f"{', '.join(str(run / n) for n in RUN_FILES)}")

@@ -29,6 +29,8 @@ def configure(p) -> None:
     add_layout_args(p)
     p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
     p.add_argument("--video", metavar="FILE", help="write a video of the run (.mp4 or .gif)")
+    p.add_argument("--html", metavar="FILE", help="write a 3D replay of the run: one .html file "
+                   "that plays in a browser, offline")
     size = pixels(MIN_PIXELS, MAX_PIXELS)
     p.add_argument("--width", type=size, default=640, help=f"video pixels, {MIN_PIXELS} to "
                    f"{MAX_PIXELS} (default 640)")
@@ -50,6 +52,8 @@ def run(args) -> int:
         output_file(args.video, "--video", VIDEO_SUFFIXES)
         if not 0.01 <= args.speed <= 4:
             raise UsageError("--speed", "", f"expected 0.01 to 4, got {args.speed:g}")
+    if args.html:
+        output_file(args.html, "--html", (".html", ".htm"))
     scenario = load_scenario_arg(args)
     if args.video:
         frames = video_frames(scenario.settings, VIDEO_FPS, args.speed)
@@ -63,7 +67,12 @@ def run(args) -> int:
     if args.video:
         result = record_video(scenario, values, parts, Path(args.video), VIDEO_FPS,
                               args.width, args.height, args.speed, args.labels)
-    else:
+    if args.html:
+        from rgmcad.viewer.page import simulate_to_html
+
+        result = simulate_to_html(scenario, values, parts, args.html,
+                                  title=f"{scenario.name}, layout {name}")
+    if not (args.video or args.html):
         result = simulate(scenario, values, parts)
     if args.json:
         out = result.to_dict()
@@ -72,6 +81,8 @@ def run(args) -> int:
                    values={f.name: float(v) for f, v in zip(scenario.free, values, strict=True)})
         if args.video:
             out["video"] = args.video
+        if args.html:
+            out["html"] = args.html
         say(json.dumps(out))
         return 0 if result.outcome is Outcome.SUCCESS else 1
     say(f"{scenario.name}, layout {name}")
@@ -86,4 +97,6 @@ def run(args) -> int:
         f"{result.sim_time:.3f} s simulated in {result.wall_time:.2f} s)")
     if args.video:
         say(f"video: {args.video}")
+    if args.html:
+        say(f"replay: {args.html}")
     return 0 if result.outcome is Outcome.SUCCESS else 1

@@ -1,8 +1,10 @@
-"""What a finished optimisation run shows: ``report.md`` and its two plots.
+"""What a finished optimisation run shows: ``report.md`` and its three plots.
 
 The report is markdown written from the run's summary (``result.json``); the plots are
-matplotlib figures (Agg) of the learnt success model through the layout and of the run's
-progress. :mod:`rgmcad.runs.workflow` writes them into the run directory.
+matplotlib figures (Agg), in the units the user works in (mm, degrees): the learnt success
+model through the layout, the predicted success under placement errors, and the run's
+progress. :mod:`rgmcad.runs.workflow` writes them into the run directory; the HTML report
+(:mod:`rgmcad.viewer.report`) shows the same figures.
 """
 
 from __future__ import annotations
@@ -11,12 +13,23 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["REPORT_FILE", "SLICE_PLOT", "PROGRESS_PLOT", "report_markdown", "plot_slice",
-           "plot_progress"]
+__all__ = ["REPORT_FILE", "SLICE_PLOT", "PROGRESS_PLOT", "ROBUSTNESS_PLOT", "ERROR_GRID",
+           "report_markdown", "plot_slice", "plot_progress", "plot_robustness",
+           "predicted_robustness", "user_scale"]
 
 REPORT_FILE = "report.md"
 SLICE_PLOT = "probability_slice.png"
 PROGRESS_PLOT = "exploration.png"
+ROBUSTNESS_PLOT = "robustness.png"
+ERROR_GRID = np.linspace(0.0, 10.0, 21)
+"""Standard deviations of the placement errors of :func:`predicted_robustness`: mm for
+positions, degrees for angles."""
+
+
+def user_scale(parameter) -> tuple[float, str]:
+    """(factor from the parameter's real unit to the user's, the user's unit): metres to
+    millimetres, degrees stay degrees."""
+    return (1.0, "deg") if parameter.unit == "deg" else (1000.0, "mm")
 
 
 def report_markdown(scenario, s: dict, low, high) -> str:
@@ -49,7 +62,7 @@ def report_markdown(scenario, s: dict, low, high) -> str:
               "", "| parameter | value | may move down | may move up | range |",
               "|---|---|---|---|---|"]
     for j, f in enumerate(scenario.free):
-        k, unit = (1.0, "deg") if f.unit == "deg" else (1000.0, "mm")
+        k, unit = user_scale(f)
         down, up = s["tolerances"][f.name]
         lines.append(f"| {f.name} | {s['values'][f.name] * k:.2f} {unit} | {down * k:.2f} | "
                      f"{up * k:.2f} | [{low[j] * k:.2f}, {high[j] * k:.2f}] |")
@@ -63,76 +76,128 @@ def report_markdown(scenario, s: dict, low, high) -> str:
         for c in s["verification"]:
             lines.append(f"| {c['source']} | {c['success_rate']:.2f} | {c['valid_copies']} |")
     lines += ["", "## Plots", "", f"![probability slice]({SLICE_PLOT})", "",
-              f"![exploration]({PROGRESS_PLOT})", ""]
+              f"![robustness]({ROBUSTNESS_PLOT})", "", f"![exploration]({PROGRESS_PLOT})", ""]
     return "\n".join(lines)
 
 
-def plot_slice(scenario, model, x, influence, path: Path) -> None:
-    """Predicted success through ``x`` along its two most influential parameters."""
+def _pyplot():
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
+    return plt
+
+
+def plot_slice(scenario, model, x, influence, path: Path) -> None:
+    """Predicted success through ``x`` along its two most influential parameters (one for a
+    one-parameter scenario), axes in mm or degrees, contours at 50 % and 90 %."""
     from rgmcad.scene.design_space import bounds
 
+    plt = _pyplot()
     low, high = bounds(scenario)
-    order = np.argsort(-influence, kind="stable")
+    order = np.argsort(-np.asarray(influence), kind="stable")
     fig, ax = plt.subplots(figsize=(5.5, 4.5), dpi=120)
     t = np.linspace(0.0, 1.0, 81)
     if len(x) == 1:
-        P = t[:, None]
-        ax.plot(low[0] + t * (high[0] - low[0]), model.success_proba(P))
-        ax.axvline(low[0] + x[0] * (high[0] - low[0]), color="k", ls="--")
-        ax.set_xlabel(scenario.free[0].name)
-        ax.set_ylabel("P(success)")
+        k, unit = user_scale(scenario.free[0])
+        span = (low[0] + t * (high[0] - low[0])) * k
+        ax.plot(span, model.success_proba(t[:, None]))
+        ax.axvline((low[0] + x[0] * (high[0] - low[0])) * k, color="k", ls="--", label="layout")
+        ax.set_xlabel(f"{scenario.free[0].name} ({unit})")
+        ax.set_ylabel("predicted P(success)")
+        ax.set_ylim(0, 1.02)
+        ax.legend(fontsize=8)
     else:
         i, j = (int(v) for v in order[:2])
+        (ki, ui), (kj, uj) = user_scale(scenario.free[i]), user_scale(scenario.free[j])
         A, B = np.meshgrid(t, t)
-        P = np.repeat(x[None, :], A.size, axis=0)
+        P = np.repeat(np.asarray(x, float)[None, :], A.size, axis=0)
         P[:, i], P[:, j] = A.ravel(), B.ravel()
         Z = model.success_proba(P).reshape(A.shape)
-        ext = [low[i], high[i], low[j], high[j]]
-        im = ax.imshow(Z, origin="lower", extent=ext, aspect="auto", vmin=0, vmax=1,
-                       cmap="viridis")
-        ax.contour(low[i] + A * (high[i] - low[i]), low[j] + B * (high[j] - low[j]), Z,
-                   levels=[0.5, 0.9], colors="w", linewidths=0.8)
-        ax.plot(low[i] + x[i] * (high[i] - low[i]), low[j] + x[j] * (high[j] - low[j]),
-                "r*", ms=12, label="layout")
-        fi, fj = scenario.free[i], scenario.free[j]
-        ax.set_xlabel(f"{fi.name} ({fi.unit})")
-        ax.set_ylabel(f"{fj.name} ({fj.unit})")
+        U, V = (low[i] + A * (high[i] - low[i])) * ki, (low[j] + B * (high[j] - low[j])) * kj
+        im = ax.pcolormesh(U, V, Z, vmin=0, vmax=1, cmap="viridis", shading="gouraud")
+        if np.ptp(Z) > 0:
+            lines = ax.contour(U, V, Z, levels=[0.5, 0.9], colors="w", linewidths=0.9)
+            ax.clabel(lines, fmt=lambda v: f"{v:.0%}", fontsize=8)
+        ax.plot((low[i] + x[i] * (high[i] - low[i])) * ki,
+                (low[j] + x[j] * (high[j] - low[j])) * kj, "r*", ms=12, label="layout")
+        ax.set_xlabel(f"{scenario.free[i].name} ({ui})")
+        ax.set_ylabel(f"{scenario.free[j].name} ({uj})")
         fig.colorbar(im, ax=ax, label="predicted P(success)")
         ax.legend(loc="upper right", fontsize=8)
-    ax.set_title(f"{scenario.name}: slice through the layout", fontsize=10)
+    ax.set_title(f"{scenario.name}: success through the layout (others held)", fontsize=10)
     fig.tight_layout()
     fig.savefig(path)
     plt.close(fig)
 
 
+def predicted_robustness(scenario, model, x, errors=ERROR_GRID, samples: int = 400,
+                         seed: int = 0) -> np.ndarray:
+    """(k,) mean predicted success when every free parameter is placed with a Gaussian error
+    of standard deviation ``errors[k]`` (mm for positions, degrees for angles) around ``x``
+    (d,) normalised. Layouts pushed out of the design space are clipped to its border."""
+    from rgmcad.scene.design_space import bounds
+
+    low, high = bounds(scenario)
+    per_unit = np.array([1.0 / (user_scale(f)[0] * (high[j] - low[j]))
+                         for j, f in enumerate(scenario.free)])  # user unit -> normalised
+    noise = np.random.default_rng(seed).standard_normal((samples, len(x)))
+    out = np.empty(len(errors))
+    for k, sigma in enumerate(errors):
+        X = np.clip(np.asarray(x, float) + noise * sigma * per_unit, 0.0, 1.0)
+        out[k] = float(np.mean(model.success_proba(X)))
+    return out
+
+
+def plot_robustness(scenario, model, x, path: Path, errors=ERROR_GRID) -> np.ndarray:
+    """Plot :func:`predicted_robustness` against the placement error; returns the curve."""
+    plt = _pyplot()
+    curve = predicted_robustness(scenario, model, x, errors)
+    fig, ax = plt.subplots(figsize=(5.5, 4.0), dpi=120)
+    ax.plot(errors, curve, "o-", ms=3, color="#2d6cdf")
+    for level in (0.5, 0.9):
+        ax.axhline(level * curve[0], color="0.6", lw=0.8, ls=":")
+        ax.annotate(f"{level:.0%} of the layout's", (errors[-1], level * curve[0]),
+                    ha="right", va="bottom", fontsize=7, color="0.4")
+    ax.set_xlabel("placement error, standard deviation (mm for positions, degrees for angles)",
+                  fontsize=8)
+    ax.set_ylabel("predicted P(success)")
+    ax.set_ylim(0, 1.02)
+    ax.set_xlim(errors[0], errors[-1])
+    ax.grid(alpha=0.3)
+    ax.set_title(f"{scenario.name}: success when parts are placed by hand", fontsize=10)
+    fig.tight_layout()
+    fig.savefig(path)
+    plt.close(fig)
+    return curve
+
+
 def plot_progress(result, path: Path) -> None:
-    """Successful events per simulation (by stage) and cumulative global successes."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    n_events = np.array([lab.n_success for lab in result.labels])
-    success = np.array([lab.success for lab in result.labels])
-    stages = np.array(result.stages)
-    idx = np.arange(len(n_events))
-    fig, (ax1, ax2) = plt.subplots(2, 1, figsize=(7, 5), dpi=120, sharex=True)
-    for st in dict.fromkeys(stages):
-        m = stages == st
-        ax1.scatter(idx[m], n_events[m], s=4, label=st)
-    ax1.set_ylabel("successful events")
-    ax1.legend(fontsize=7, markerscale=3, loc="lower right")
-    ax2.plot(idx, np.cumsum(success), color="k")
-    ax2.set_ylabel("global successes")
-    ax2.set_xlabel("simulation")
-    for ax in (ax1, ax2):
-        ax.grid(alpha=0.3)
-    fig.suptitle("exploration and active learning", fontsize=10)
+    """Successful simulations over simulations, one coloured stretch per stage (exploration,
+    active learning of each event), with each stage's success count."""
+    plt = _pyplot()
+    success = np.array([lab.success for lab in result.labels], float)
+    stages = list(result.stages)
+    total = np.cumsum(success)
+    idx = np.arange(1, len(success) + 1)
+    fig, ax = plt.subplots(figsize=(7, 4), dpi=120)
+    colors = plt.get_cmap("tab10")
+    for n, stage in enumerate(dict.fromkeys(stages)):
+        m = np.array([s == stage for s in stages])
+        where = np.flatnonzero(m)
+        lo, hi = where[0], where[-1] + 1
+        ax.axvspan(lo + 0.5, hi + 0.5, color=colors(n % 10), alpha=0.12, lw=0)
+        joined = max(lo - 1, 0)  # from the previous stage's last point
+        ax.plot(idx[joined:hi], total[joined:hi], color=colors(n % 10), lw=2,
+                label=f"{stage}: {int(success[m].sum())} of {int(m.sum())} succeeded")
+    ax.set_xlabel("simulation")
+    ax.set_ylabel("successful simulations so far")
+    ax.set_xlim(0.5, max(len(idx), 1) + 0.5)
+    ax.set_ylim(0, max(total[-1] if len(total) else 0, 1) * 1.08)
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8, loc="upper left")
+    ax.set_title("exploration and active learning: whole-chain successes", fontsize=10)
     fig.tight_layout()
     fig.savefig(path)
     plt.close(fig)

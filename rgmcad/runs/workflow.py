@@ -45,8 +45,10 @@ from rgmcad.runs.problem import (
 from rgmcad.runs.report import (
     PROGRESS_PLOT,
     REPORT_FILE,
+    ROBUSTNESS_PLOT,
     SLICE_PLOT,
     plot_progress,
+    plot_robustness,
     plot_slice,
     report_markdown,
 )
@@ -322,10 +324,12 @@ def _write_outputs(scenario, store, recorded, result, chosen, wall_time, seed, b
         "budget": budget,
         "model_sha256": store.model_sha256,
         "files": {"layout": LAYOUT_FILE, "start": START_FILE, "report": REPORT_FILE,
-                  "slice_plot": SLICE_PLOT, "progress_plot": PROGRESS_PLOT, "model": MODEL,
+                  "slice_plot": SLICE_PLOT, "progress_plot": PROGRESS_PLOT,
+                  "robustness_plot": ROBUSTNESS_PLOT, "model": MODEL,
                   "simulations": SIMULATIONS, "settings": SETTINGS},
     }
     plot_slice(scenario, model, x, spread, run_dir / SLICE_PLOT)
+    plot_robustness(scenario, model, x, run_dir / ROBUSTNESS_PLOT)
     plot_progress(result, run_dir / PROGRESS_PLOT)
     write_atomic(run_dir / REPORT_FILE, report_markdown(scenario, summary, low, high))
     store.write_result(summary)  # last: its presence marks the run finished

@@ -1,0 +1,154 @@
+"""The page of a finished optimisation run, ``DIR/report.html``: the replay of the optimised
+layout, the per-event probabilities with the weakest link, the placement tolerances (tight
+ones highlighted), the run's figures and a link to the printable template.
+
+It is written from what the run left in its directory (``result.json`` and the plots of
+:mod:`rgmcad.runs.report`) and one simulation of the layout, recorded for the replay.
+"""
+
+from __future__ import annotations
+
+import base64
+import json
+from html import escape
+from pathlib import Path
+
+from rgmcad.parts.store import DEFAULT_BUILD_DIR
+from rgmcad.runs.report import PROGRESS_PLOT, ROBUSTNESS_PLOT, SLICE_PLOT, user_scale
+from rgmcad.runs.store import RESULT
+from rgmcad.viewer.page import html_page, replay_section
+from rgmcad.viewer.recording import record_replay, replay_payload
+
+__all__ = ["REPORT_HTML", "TIGHT_MM", "TIGHT_DEG", "TEMPLATE_FILES", "write_run_report"]
+
+REPORT_HTML = "report.html"
+TIGHT_MM = 3.0
+"""A position tolerance (either side) under this many mm is tight: about what a person
+placing a part on a printed template by eye keeps to."""
+TIGHT_DEG = 3.0
+"""An angle tolerance (either side) under this many degrees is tight."""
+TEMPLATE_FILES = ("template/template.pdf", "template.pdf")
+"""Where the report looks for the printable template, relative to the run directory."""
+
+_FIGURES = (
+    (SLICE_PLOT, "Predicted probability of success through the layout (star) along the two "
+     "parameters it depends on most, the others held at the layout's values; contours at "
+     "50 % and 90 %."),
+    (ROBUSTNESS_PLOT, "Predicted probability of success when every part is placed with a "
+     "random error (Gaussian, this standard deviation in mm for positions and degrees for "
+     "angles), from the learnt model."),
+    (PROGRESS_PLOT, "Exploration history: whole-chain successes as the simulations went, one "
+     "colour per stage (exploration, then active learning of the weakest events)."),
+)
+
+
+def write_run_report(run_dir: str | Path, scenario_path: str | Path, *,
+                     build_dir: str | Path = DEFAULT_BUILD_DIR,
+                     parts_dir: str | Path | None = None) -> Path:
+    """Write ``run_dir/report.html`` for the finished run in ``run_dir`` of the scenario at
+    ``scenario_path`` (a file or a shipped scenario's name); returns its path."""
+    from rgmcad.scene.bodies import load_parts
+    from rgmcad.scene.design_space import bounds
+    from rgmcad.scene.loader import load_scenario
+
+    run_dir = Path(run_dir)
+    summary = json.loads((run_dir / RESULT).read_text())
+    scenario = load_scenario(scenario_path, parts_dir=parts_dir)
+    values = [summary["values"][f.name] for f in scenario.free]
+    parts = load_parts(scenario, build_dir)
+    result, replay = record_replay(scenario, values, parts,
+                                   title=f"{scenario.name}: optimised layout")
+    payload = None if replay is None else replay_payload(replay)
+    low, high = bounds(scenario)
+    title = f"{scenario.name}: optimised layout"
+    body = [f"<h1>{escape(title)}</h1>", _overview(summary, result),
+            "<h2>Replay of the optimised layout</h2>",
+            replay_section(payload) if payload else
+            "<p>The layout is invalid (its parts overlap), so there is nothing to replay.</p>",
+            _events(summary, result), _placement(scenario, summary, low, high),
+            _figures(run_dir), _template(run_dir, scenario, summary)]
+    path = run_dir / REPORT_HTML
+    path.write_text(html_page(title, "\n".join(body), payload), encoding="utf-8")
+    return path
+
+
+def _overview(s: dict, result) -> str:
+    weakest = s["weakest_event"]
+    weakest_p = s.get("weakest_probability", s["event_probabilities"].get(weakest, 1.0))
+    stages = ", ".join(f"{escape(k)} {v}" for k, v in s["simulations_by_stage"].items())
+    return (f"<ul><li>predicted probability of success: <b>{s['probability']:.3f}</b>; "
+            f"weakest link: <code>{escape(str(weakest))}</code> ({weakest_p:.3f})</li>"
+            f"<li>this layout simulated now: <b>{escape(result.outcome.value)}</b> "
+            f"({result.n_success} of {len(result.events)} events); chosen as "
+            f"{escape(s['source'])}</li>"
+            f"<li>{s['simulations']} simulations ({s['successes']} successes; {stages}) in "
+            f"{s['wall_time']:.0f} s; seed {s['seed']}, budget {escape(str(s['budget']))}</li>"
+            f'<li>layout file: <a href="{escape(Path(s["layout"]).name)}">'
+            f"{escape(Path(s['layout']).name)}</a> (give it to <code>--layout</code>)</li></ul>")
+
+
+def _events(s: dict, result) -> str:
+    rows = []
+    simulated = {e.name: e for e in result.events}
+    for name, p in s["event_probabilities"].items():
+        weakest = name == s["weakest_event"]
+        f = s.get("factors", {}).get(name, {})
+        e = simulated.get(name)
+        seen = "" if e is None else e.state.value + ("" if e.time is None else
+                                                     f" at {e.time:.3f} s")
+        rows.append(f'<tr class="{"weakest" if weakest else ""}"><td><code>{escape(name)}'
+                    f"</code>{' (weakest link)' if weakest else ''}</td><td>{p:.3f}</td>"
+                    f'<td style="text-align:left"><span class="bar" style="width:{p * 8:.2f}rem">'
+                    f"</span></td><td>{escape(seen)}</td><td>{escape(str(f.get('model', '')))}"
+                    f"</td><td>{escape(', '.join(f.get('dims', [])) or '-')}</td></tr>")
+    return ("<h2>Events</h2><p>Probability of each event given that the events it waits for "
+            "happened, predicted by the learnt model at this layout; the run succeeds when "
+            "all do. The weakest link is the one most likely to break the chain.</p>"
+            "<table><tr><th>event</th><th>P(success | parents)</th><th></th>"
+            "<th>in the replay</th><th>model</th><th>depends on</th></tr>"
+            + "".join(rows) + "</table>")
+
+
+def _placement(scenario, s: dict, low, high) -> str:
+    rows = []
+    n_tight = 0
+    for j, f in enumerate(scenario.free):
+        k, unit = user_scale(f)
+        down, up = (v * k for v in s["tolerances"][f.name])
+        tight = min(down, up) < (TIGHT_DEG if unit == "deg" else TIGHT_MM)
+        n_tight += tight
+        rows.append(f'<tr class="{"tight" if tight else ""}"><td><code>{escape(f.name)}</code>'
+                    f"{' (tight)' if tight else ''}</td><td>{s['values'][f.name] * k:.2f} "
+                    f"{unit}</td><td>&minus;{down:.2f}</td><td>+{up:.2f}</td>"
+                    f"<td>{low[j] * k:.2f} to {high[j] * k:.2f}</td></tr>")
+    return ("<h2>Placement tolerances</h2><p>How far each part may be misplaced, one "
+            "parameter at a time, before the predicted success drops below 90 % of its value "
+            f"here. Highlighted: tight ones (under {TIGHT_MM:g} mm or {TIGHT_DEG:g} degrees on "
+            f"a side), {n_tight} of {len(rows)}: place those with care.</p>"
+            "<table><tr><th>parameter</th><th>value</th><th>may move down</th>"
+            "<th>may move up</th><th>range</th></tr>" + "".join(rows) + "</table>")
+
+
+def _figures(run_dir: Path) -> str:
+    out = []
+    for name, caption in _FIGURES:
+        path = run_dir / name
+        if not path.is_file():
+            continue
+        data = base64.b64encode(path.read_bytes()).decode("ascii")
+        out.append(f'<figure><img src="data:image/png;base64,{data}" alt="{escape(name)}">'
+                   f"<figcaption>{escape(caption)}</figcaption></figure>")
+    return f'<h2>Figures</h2><div class="figures">{"".join(out)}</div>' if out else ""
+
+
+def _template(run_dir: Path, scenario, s: dict) -> str:
+    for name in TEMPLATE_FILES:
+        if (run_dir / name).is_file():
+            return (f'<h2>Printable template</h2><p><a href="{escape(name)}">{escape(name)}</a>: '
+                    "print it at 100 %, tape the sheets together and place each part on its "
+                    "outline.</p>")
+    return ("<h2>Printable template</h2><p>None yet. Make one beside this report (it is then "
+            "linked here the next time the report is written, e.g. by the same "
+            "<code>rgmcad optimize</code> command):</p><pre>rgmcad template "
+            f"{escape(scenario.name)} --layout {escape(s['layout'])} --out "
+            f"{escape(str(run_dir / 'template'))}</pre>")

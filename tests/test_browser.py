@@ -1,0 +1,184 @@
+"""A real browser opens the pages: headless Chromium (the system's, driven by playwright)
+loads a replay written by ``rgmcad simulate --html`` and a report written for an optimisation
+run, from disk, and we look at what it shows.
+
+Skipped, with the reason, only when no Chromium is installed (``apt-get install chromium``;
+.ci/run installs it); under CI (``CI`` set) a missing browser fails instead.
+"""
+
+import contextlib
+import io
+import os
+import shutil
+import time
+
+import numpy as np
+import pytest
+
+from rgmcad.cli import main
+from rgmcad.scene.loader import load_scenario
+
+playwright = pytest.importorskip("playwright.sync_api", reason="playwright is not installed "
+                                 "(uv sync installs it with the dev dependencies)")
+
+SIMPLE = "scenarios/simple.toml"
+BROWSERS = ("chromium", "chromium-browser", "google-chrome", "google-chrome-stable")
+# software WebGL: a headless browser on a machine without a GPU
+FLAGS = ["--use-angle=swiftshader", "--enable-unsafe-swiftshader", "--no-sandbox"]
+OPEN_WITHIN_S = 10.0
+"""Loose bound on opening a page here (2 shared cores, software GL); see docs/decisions.md
+for the measured times."""
+
+
+def _chromium():
+    given = os.environ.get("RGMCAD_CHROMIUM")
+    if given:
+        return given
+    return next((p for p in map(shutil.which, BROWSERS) if p), None)
+
+
+@pytest.fixture(scope="module")
+def browser():
+    path = _chromium()
+    if path is None:
+        if os.environ.get("CI"):
+            pytest.fail("no Chromium installed under CI: .ci/run should have installed it")
+        pytest.skip("no Chromium installed (apt-get install chromium, or set RGMCAD_CHROMIUM)")
+    with playwright.sync_playwright() as p:
+        b = p.chromium.launch(executable_path=path, args=FLAGS)
+        yield b
+        b.close()
+
+
+@contextlib.contextmanager
+def _open(browser, path):
+    """The page at ``path`` once its viewer is ready, and the seconds that took."""
+    page = browser.new_page(viewport={"width": 1000, "height": 800})
+    errors = []
+    page.on("pageerror", lambda e: errors.append(str(e)))
+    try:
+        start = time.perf_counter()
+        page.goto(path.resolve().as_uri())
+        page.wait_for_selector("#rgmcad-replay[data-ready='1']", timeout=30_000)
+        took = time.perf_counter() - start
+        assert not errors, errors
+        yield page, took
+    finally:
+        page.close()  # a page left open keeps animating, and slows the next ones
+
+
+def _canvas(page) -> np.ndarray:
+    from PIL import Image
+
+    png = page.locator("#rgmcad-replay canvas").screenshot()
+    return np.asarray(Image.open(io.BytesIO(png)).convert("RGB"), float)
+
+
+def _viewer(page, call: str):
+    return page.evaluate(f"window.rgmcadViewer.{call}")
+
+
+@pytest.fixture(scope="module")
+def replay(tmp_path_factory):
+    out = tmp_path_factory.mktemp("replay") / "simple.html"
+    assert main(["simulate", SIMPLE, "--layout", "solved", "--html", str(out)]) == 0
+    return out
+
+
+def test_the_3d_view_is_drawn(browser, replay):
+    with _open(browser, replay) as (page, took):
+        print(f"replay of simple opened in {took:.2f} s")
+        assert took < OPEN_WITHIN_S
+        _viewer(page, "pause()")
+        image = _canvas(page)
+        assert image.shape[0] > 200 and image.shape[1] > 300
+        colours = len(np.unique(image.reshape(-1, 3), axis=0))
+        assert image.std() > 10 and colours > 50  # shaded, not a blank or flat canvas
+        # the moving parts are drawn in colour; the floor, grid and background are grey
+        saturation = image.max(axis=2) - image.min(axis=2)
+        assert (saturation > 60).mean() > 0.002
+
+
+def test_two_screenshots_a_second_apart_differ_while_playing(browser, replay):
+    with _open(browser, replay) as (page, _):
+        page.uncheck("#rgmcad-replay .loop")  # no wrapping round to the same picture
+        page.click("#rgmcad-replay .speed >> text='1/10x'")  # the run lasts 5.8 s of playing
+        _viewer(page, "seek(0)")
+        _viewer(page, "play()")
+        first, t_first = _canvas(page), _viewer(page, "time()")
+        page.wait_for_timeout(1000)
+        second, t_second = _canvas(page), _viewer(page, "time()")
+        assert t_second > t_first and _viewer(page, "playing()")
+        assert np.abs(first - second).max() > 50
+        page.click("#rgmcad-replay .play")  # pause: the picture stands still
+        assert not _viewer(page, "playing()")
+        still = _canvas(page)
+        page.wait_for_timeout(1000)
+        assert np.array_equal(still, _canvas(page))
+
+
+def test_slow_motion_plays_at_a_tenth_of_real_time(browser, replay):
+    with _open(browser, replay) as (page, _):
+        page.click("#rgmcad-replay .speed >> text='1/10x'")
+        _viewer(page, "seek(0)")
+        t0 = _viewer(page, "time()")
+        page.wait_for_timeout(1000)
+        advanced = _viewer(page, "time()") - t0
+        assert 0.05 < advanced < 0.2, advanced
+
+
+def _timeline(page) -> dict[str, str]:
+    return page.evaluate("Object.fromEntries([...document.querySelectorAll('.events "
+                         "[data-event]')].map(e => [e.dataset.event, e.className]))")
+
+
+def test_the_timeline_lists_every_event_and_lights_them_in_turn(browser, replay):
+    with _open(browser, replay) as (page, _):
+        _viewer(page, "pause()")
+        _viewer(page, "seek(0)")
+        page.wait_for_timeout(100)
+        events = load_scenario(SIMPLE).events
+        at_start = _timeline(page)
+        assert set(at_start) == set(events)
+        assert not any("lit" in c for c in at_start.values())
+        _viewer(page, f"seek({_viewer(page, 'duration')})")
+        page.wait_for_timeout(100)
+        assert all(c == "lit" for c in _timeline(page).values())  # solved: every event succeeds
+
+
+def test_a_failed_event_turns_red(browser, tmp_path):
+    scenario = load_scenario(SIMPLE)
+    rng = np.random.default_rng(0)
+    out = tmp_path / "failing.html"
+    for _ in range(50):  # a layout whose chain breaks
+        vector = ",".join(f"{v:.4f}" for v in rng.random(len(scenario.free)))
+        main(["simulate", SIMPLE, "--vector", vector, "--html", str(out)])
+        if out.exists() and 'data-state="failure"' in out.read_text():
+            break
+    else:
+        pytest.fail("no failing layout among 50 random ones")
+    with _open(browser, out) as (page, _):
+        _viewer(page, "pause()")
+        _viewer(page, f"seek({_viewer(page, 'duration')})")
+        page.wait_for_timeout(100)
+        states = page.evaluate("[...document.querySelectorAll('.events [data-event]')]"
+                               ".map(e => [e.dataset.state, e.className])")
+        assert any(s == "failure" for s, _ in states)
+        assert all(("failed" in c) == (s == "failure") for s, c in states)
+
+
+def test_the_optimisation_report_opens_with_its_replay_and_figures(browser, tmp_path):
+    from rgmcad.runs.workflow import optimize_scenario
+    from rgmcad.viewer.report import write_run_report
+    from tests.test_optimize import TINY
+
+    run = tmp_path / "run"
+    optimize_scenario(SIMPLE, seed=3, budget="small", settings=TINY, run_dir=run, workers=1)
+    with _open(browser, write_run_report(run, SIMPLE)) as (page, took):
+        print(f"report opened in {took:.2f} s")
+        assert took < OPEN_WITHIN_S
+        _viewer(page, "pause()")
+        assert _canvas(page).std() > 10
+        assert set(_timeline(page)) == set(load_scenario(SIMPLE).events)
+        widths = page.evaluate("[...document.querySelectorAll('figure img')].map(i => i.naturalWidth)")
+        assert len(widths) == 3 and min(widths) > 300
