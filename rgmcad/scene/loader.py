@@ -33,6 +33,7 @@ from rgmcad.scene.loader_checks import (
     read_text,
 )
 from rgmcad.scene.loader_events import parse_events
+from rgmcad.scene.loader_ropes import parse_ropes
 from rgmcad.scene.model import (
     FRAME,
     PHYSICAL_KEYS,
@@ -67,7 +68,7 @@ from rgmcad.scene.schema import (
     warnings_after_loading,
 )
 
-TOP_KEYS = ("name", "description", "simulation", "objects", "runs", "joints", "events",
+TOP_KEYS = ("name", "description", "simulation", "objects", "runs", "joints", "ropes", "events",
             "layouts")
 OBJECT_KEYS = ("part", "params", "parent", "pose", "free", "note", *PHYSICAL_KEYS)
 RUN_KEYS = ("domino", "path", "tilt", "parent", "pose", "free", "note", *PHYSICAL_KEYS)
@@ -182,6 +183,7 @@ def _parse(data, where, path, parts_dir) -> Scenario:
                             f"{MAX_FREE:,} (the dimension of the design space)")
     _check_parents(objects, runs, where)
     joints = _parse_joints(data.get("joints", []), objects, families, where)
+    ropes = parse_ropes(data.get("ropes", {}), objects, where)
     events = parse_events(data.get("events", {}), objects, families, runs, where, settings)
     layouts = _parse_layouts(data.get("layouts", {}), objects, free, where)
 
@@ -189,7 +191,7 @@ def _parse(data, where, path, parts_dir) -> Scenario:
         name=name, path=path,
         description=expect(data.get("description", ""), str, where, "description"),
         objects=objects, free=tuple(free), joints=joints, events=events, settings=settings,
-        layouts=layouts, families=families, runs=runs,
+        layouts=layouts, families=families, runs=runs, ropes=ropes,
     )
     if not events:
         raise ScenarioError(where, "events", "a scenario needs a causal graph of at least one event")

@@ -47,6 +47,9 @@ MAX_NAME = 100
 """Characters of a name (scenario, object, run, event, layout)."""
 MAX_STEPS = 1_000_000
 """Simulation steps of one run: duration / timestep."""
+MAX_ROPES = 100
+MAX_PULLEYS = 100
+"""Pulley points of one rope."""
 MIN_RANGE = 1e-6
 """Narrowest free range (m or deg): a narrower one maps tiny moves to huge design vectors."""
 
@@ -56,6 +59,8 @@ LIMITS = {
     "dominoes per run": f"{MAX_RUN:,}",
     "events": f"{MAX_EVENTS:,}",
     "joints": f"{MAX_JOINTS:,}",
+    "ropes": f"{MAX_ROPES:,}",
+    "pulleys per rope": f"{MAX_PULLEYS:,}",
     "free parameters": f"{MAX_FREE:,}",
     "layouts": f"{MAX_LAYOUTS:,}",
     "levels of parents": f"{MAX_DEPTH:,}",
@@ -261,6 +266,10 @@ EVENT_PARAMS = {
 EVENT = {"timeout": Number("s", 0, 600, open_low=True), "hold": Number("s", 0, 600)}
 POINT = {"x": POSITION, "y": POSITION, "z": POSITION}
 JOINT = {"point": Vector(POSITION, 3), "axis": Vector(Number("", -1000, 1000), 3, nonzero=True)}
+ROPE = {"length": Number("m", 1e-4, 100, usual=(0, 10), slip=("", MM_AS_M)),
+        "slack": Number("m", 0, 100, usual=(0, 10), slip=("", MM_AS_M)),
+        "point": Vector(POSITION, 3)}
+"""``[ropes.NAME]``: the rope's length or slack, and the ``point`` of each end and pulley."""
 VECTOR = Number("", 0, 1)
 """Each entry of a design vector (``--vector``, a layout file's ``vector``)."""
 
@@ -298,6 +307,8 @@ def rows() -> Iterator[tuple[str, str, object]]:
         add("events: `point`", k, s)
     for k, s in JOINT.items():
         add("joints", k, s)
+    for k, s in ROPE.items():
+        add("ropes", k, s)
     for where, keys, spec in groups:
         yield where, ", ".join(f"`{k}`" for k in keys), spec
 

@@ -29,6 +29,7 @@ from rgmcad.geometry import invert, transform_points
 from rgmcad.parts.pieces import BoxPiece, CylinderPiece, SpherePiece
 from rgmcad.parts.store import BuiltBody
 from rgmcad.scene.bodies import Scene, SceneBody
+from rgmcad.scene.ropes import ropes_fit_many
 from rgmcad.sim.cache import PartCache
 
 TOLERANCE = 2e-4
@@ -243,6 +244,8 @@ def check_validity(
                 overlaps.append(Overlap(a.name, b.name, depth, volume))
                 if stop_at_first:
                     break
+    overlaps.extend(Overlap(f"rope {r.name} (too short)", "its path", r.excess, 0.0)
+                    for r in scene.ropes if r.excess > tolerance)  # depth: missing length
     return Validity(not overlaps, tuple(overlaps), tested)
 
 
@@ -353,6 +356,7 @@ class LayoutValidity:
         if n == 0 or m == 0:
             return valid
         world = world_poses_many(self.scenario, values)
+        valid &= ropes_fit_many(self.scenario, world, tol)  # ropes long enough for their path
         poses = np.stack([world[b.object] for b in self.solids], axis=1)  # (m, n, 4, 4)
         rot = poses[..., :3, :3]
         centres = np.einsum("mnij,nj->mni", rot, self.local_centres) + poses[..., :3, 3]

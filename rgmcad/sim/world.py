@@ -33,6 +33,7 @@ from rgmcad.scene.model import SimulationSettings
 from rgmcad.sim.cache import PartCache
 from rgmcad.sim.engine import Engine, pb
 from rgmcad.sim.inertia import inertial_frame
+from rgmcad.sim.ropes import with_ropes
 from rgmcad.sim.shapes import collision_shape
 
 
@@ -97,7 +98,7 @@ class World:
         except BaseException:
             self.close()
             raise
-        self._step = e.stepSimulation
+        self._step = with_ropes(self, scene, e.stepSimulation)  # ropes pull before each step
 
     def close(self) -> None:
         """Release the engine (closing it if it is the world's own); idempotent."""
