@@ -31,7 +31,14 @@ from scipy.spatial import ConvexHull
 
 from rgmcad.geometry import invert
 from rgmcad.parts.family import load_families, params_dict
-from rgmcad.parts.pieces import BoxPiece, ConvexPiece, CylinderPiece, PlanePiece, SpherePiece
+from rgmcad.parts.pieces import (
+    BoxPiece,
+    CapsulePiece,
+    ConvexPiece,
+    CylinderPiece,
+    PlanePiece,
+    SpherePiece,
+)
 from rgmcad.scene.bodies import Scene
 from rgmcad.scene.loader import load_scenario
 from rgmcad.sim.world import World
@@ -80,6 +87,11 @@ def _halfspaces(piece, frame: np.ndarray, pad: float):
 def _entry(piece, frame: np.ndarray, start: np.ndarray, end: np.ndarray, pad: float = 0.0):
     """Distance (m) from ``start`` at which the segment enters the piece grown by ``pad``;
     inf if it does not."""
+    if isinstance(piece, CapsulePiece):  # convex: entering it is entering one of its parts
+        ends = [frame @ np.array([[1, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1, z], [0, 0, 0, 1]])
+                for z in (-piece.length / 2, piece.length / 2)]
+        return min(_entry(CylinderPiece(piece.radius, piece.length), frame, start, end, pad),
+                   *(_entry(SpherePiece(piece.radius), e, start, end, pad) for e in ends))
     u = end - start
     length = float(np.linalg.norm(u))
     lo, hi = 0.0, 1.0
@@ -169,7 +181,7 @@ def shapes(monkeypatch):
 
 
 GEOM = {BoxPiece: pb.GEOM_BOX, SpherePiece: pb.GEOM_SPHERE, CylinderPiece: pb.GEOM_CYLINDER,
-        ConvexPiece: pb.GEOM_MESH, PlanePiece: pb.GEOM_PLANE}
+        CapsulePiece: pb.GEOM_CAPSULE, ConvexPiece: pb.GEOM_MESH, PlanePiece: pb.GEOM_PLANE}
 
 
 def check_counts(world: World, shapes) -> None:
