@@ -4,11 +4,12 @@ Prints, for each scenario's `solved` layout and its first valid Sobol layouts (t
 successes and failures an optimisation run simulates), the mean wall time per
 simulation, the time inside pybullet's stepSimulation, the overhead (world build, validity,
 event checks, bookkeeping) as a share of the stepping time, and simulations per second on one
-core. Simulations share one engine and one part cache, as in a worker process. Also times
+core, and the physics floor: pybullet's bare stepping of the same world for as long as the
+simulation ran. Simulations share one engine and one part cache, as in a worker process. Also times
 the validity test on a 50-body scene, and what a simulation given no engine pays for its
 own (connecting and disconnecting a pybullet client).
 
-    uv run python tools/bench_simulation.py [--repeat 5]
+    uv run python tools/bench_simulation.py [--repeat 5] [--scenarios long_chain,teapot]
 """
 
 import argparse
@@ -22,9 +23,10 @@ from rgmcad.scene.bodies import load_parts, make_scene
 from rgmcad.scene.design_space import values_from_mapping, values_from_vector
 from rgmcad.scene.loader import load_scenario, parse_scenario
 from rgmcad.sim.cache import PartCache
-from rgmcad.sim.engine import Engine
+from rgmcad.sim.engine import Engine, pb
 from rgmcad.sim.run import simulate
 from rgmcad.sim.validity import check_validity
+from rgmcad.sim.world import World
 
 
 def bench_scenario(path: Path, repeat: int, args_valid: int, engine: Engine) -> None:
@@ -41,13 +43,14 @@ def bench_scenario(path: Path, repeat: int, args_valid: int, engine: Engine) -> 
         if len(layouts) == 1 + args_valid:
             break
     simulate(scenario, layouts[0], parts, engine=engine, cache=cache)  # warm the cache
-    wall = step = valid = build = 0.0
+    wall = step = valid = build = floor = 0.0
     n = sim = 0
     for _ in range(repeat):
         for values in layouts:
             r = simulate(scenario, values, parts, engine=engine, cache=cache)
             if r.outcome.value == "invalid":
                 continue
+            floor += physics_floor(scenario, values, parts, engine, cache, r.sim_time)
             wall += r.wall_time
             step += r.step_time
             valid += r.validity_time
@@ -60,7 +63,19 @@ def bench_scenario(path: Path, repeat: int, args_valid: int, engine: Engine) -> 
           f"{step / n * 1e3:7.1f} | validity {valid / n * 1e3:5.1f} | build {build / n * 1e3:5.1f}"
           f" | events+loop {per_step / n * 1e3:6.1f} ms ({per_step / step * 100:4.0f} %) | all "
           f"but stepping {overhead / step * 100:5.1f} % | {n / wall:5.1f} sim/s "
-          f"{sim / wall:5.1f}x real time")
+          f"{sim / wall:5.1f}x real time | physics floor {floor / n * 1e3:7.1f} ms/sim")
+
+
+def physics_floor(scenario, values, parts, engine, cache, sim_time: float) -> float:
+    """Seconds pybullet alone takes to step the layout's world as long as the simulation ran
+    (no events, no ropes, no bookkeeping)."""
+    settings = scenario.settings
+    with World(make_scene(scenario, values, parts), settings, engine, cache) as world:
+        step, cid = pb.stepSimulation, world.cid
+        start = time.perf_counter()
+        for _ in range(int(round(sim_time / settings.timestep))):
+            step(physicsClientId=cid)
+        return time.perf_counter() - start
 
 
 def bench_validity() -> None:
@@ -90,10 +105,13 @@ def main() -> None:
     parser = argparse.ArgumentParser()
     parser.add_argument("--repeat", type=int, default=2)
     parser.add_argument("--layouts", type=int, default=8, help="valid Sobol layouts per scenario")
+    parser.add_argument("--scenarios", default="", help="comma-separated names (default: all)")
     args = parser.parse_args()
+    only = set(filter(None, args.scenarios.split(",")))
     with Engine() as engine:
         for path in sorted(Path("scenarios").glob("*.toml")):
-            bench_scenario(path, args.repeat, args.layouts, engine)
+            if not only or path.stem in only:
+                bench_scenario(path, args.repeat, args.layouts, engine)
     bench_validity()
     bench_engine()
 
