@@ -1,8 +1,8 @@
 """Capsule: a cylinder with a hemisphere on each end (a rope segment, a rounded peg).
 
-Frame: the origin is the capsule's centre and its axis is local Z. ``length`` is the distance between the two hemispheres' centres (the cylinder's length, the
-paper's capsule "height"), so the capsule reaches z = +-(length / 2 + radius). Its collision
-piece is the exact capsule.
+Frame: the origin is the capsule's centre and its axis is local Z. ``length`` is the distance
+between the two hemispheres' centres (the cylinder's length, the paper's capsule "height"), so
+the capsule reaches z = +-(length / 2 + radius). Its collision piece is the exact capsule.
 """
 
 import math
