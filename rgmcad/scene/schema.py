@@ -168,6 +168,23 @@ class Vector:
 
 
 @dataclass(frozen=True)
+class Text:
+    """A string of 1 to ``longest`` printable characters (a file name, an id)."""
+
+    what: str
+    longest: int = 1000
+
+    def describe(self, name: str = "x") -> str:
+        return f"a string ({self.what}), 1 to {self.longest:,} characters"
+
+    def read(self, value, where: str, key: str) -> str:
+        if (not isinstance(value, str) or not 1 <= len(value) <= self.longest
+                or not value.isprintable()):
+            raise ScenarioError(where, key, f"expected {self.describe()}, got {show(value)}")
+        return value
+
+
+@dataclass(frozen=True)
 class Points:
     """A list of ``low``..``high`` [x, y] pairs."""
 
@@ -248,6 +265,9 @@ PATHS = {
                                  why=f"2 x count - 1 <= {MAX_RUN:,} dominoes per run; odd"),
                  "width": SIZE, "origin": XY, "angle": ANGLE},
     "polyline": {"points": Points(XY, 2, MAX_POINTS), "count": COUNT, "spacing": SIZE},
+    "svg": {"file": Text("an SVG file, relative to the scenario file"),
+            "element": Text("the id of a <path> in it; default: its first path"),
+            "count": COUNT, "spacing": SIZE},
 }
 """``path = { kind = ..., ... }`` of a run: the parameters of each kind."""
 
