@@ -15,6 +15,8 @@ from rgmcad.scene.bodies import Scene
 from rgmcad.sim.engine import pb
 from rgmcad.sim.world import World
 
+BEAD = 0.0015
+"""Radius (m) of the beads a rope is drawn with."""
 MAX_SIDE = 16384
 """Largest side of a picture, pixels (callers choose their own, smaller limits)."""
 _STATIC = (0.72, 0.70, 0.66, 1.0)
@@ -42,13 +44,16 @@ class Renderer:
                 continue  # an infinite plane would hide the view; the background stands for it
             h = world.handles[name]
             color = _STATIC if body.static else _PALETTE[i % len(_PALETTE)]
-            pos, orn = to_pybullet(np.linalg.inv(h.com_to_part))  # part frame in the COM frame
+            pos, orn = to_pybullet(h.com_to_part)  # the part frame in the COM frame
             shape = engine.createVisualShape(
                 pb.GEOM_MESH, vertices=np.asarray(body.built.vertices, float).tolist(),
                 indices=np.asarray(body.built.faces, int).ravel().tolist(), rgbaColor=color,
                 visualFramePosition=pos, visualFrameOrientation=orn)
             ghost = engine.createMultiBody(0, -1, shape)
             self.ghosts.append((ghost, h))
+        bead = engine.createVisualShape(pb.GEOM_SPHERE, radius=BEAD, rgbaColor=(0.1, 0.1, 0.1, 1))
+        self.ropes = [(rope, [engine.createMultiBody(0, -1, bead) for _ in range(
+            min(400, int(np.ceil(rope.length / (2 * BEAD))) + 1))]) for rope in world.scene.ropes]
         self._camera(world.scene)
 
     def _camera(self, scene: Scene) -> None:
@@ -78,6 +83,18 @@ class Renderer:
             else:
                 pos, orn = engine.getLinkState(h.uid, h.link)[:2]
             engine.resetBasePositionAndOrientation(ghost, pos, orn)
+        for rope, beads in self.ropes:  # beads evenly spaced along the rope's path now
+            points = rope.points.copy()
+            for i, (body, local) in enumerate(zip(rope.bodies, rope.local, strict=True)):
+                if body is not None:
+                    pose = self.world.pose(body)
+                    points[0 if i == 0 else -1] = pose[:3, :3] @ local + pose[:3, 3]
+            cum = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(points, axis=0), axis=1))])
+            for bead, s in zip(beads, np.linspace(0.0, cum[-1], len(beads)), strict=True):
+                k = min(int(np.searchsorted(cum, s, side="right")) - 1, len(points) - 2)
+                t = (s - cum[k]) / max(cum[k + 1] - cum[k], 1e-12)
+                at = points[k] + t * (points[k + 1] - points[k])
+                engine.resetBasePositionAndOrientation(bead, at.tolist(), [0, 0, 0, 1])
         _, _, rgba, _, _ = engine.getCameraImage(
             self.width, self.height, self.view, self.projection,
             renderer=pb.ER_TINY_RENDERER, lightDirection=[0.4, -0.6, 1.0], shadow=0)
