@@ -210,3 +210,18 @@ def test_bad_rope_tables_are_refused_in_one_line(rope, key, words):
         scenario(objects, {"r": rope})
     assert err.value.key == key and words in err.value.message
     assert "\n" not in str(err.value)
+
+
+def test_check_and_simulate_name_a_rope_too_short(tmp_path, capsys):
+    from rgmcad.cli import main
+
+    path = tmp_path / "short.toml"
+    path.write_text('name = "short"\n[objects.a]\npart = "ball"\nparams = { radius = 0.02 }\n'
+                    'mass = 0.1\npose = { z = 0.5 }\n[ropes.r]\nends = [{ point = [0, 0, 1] }, '
+                    '{ object = "a" }]\nlength = 0.45\n[events.e]\ntype = "falling"\nbody = "a"\n')
+    assert main(["check", str(path)]) == 0
+    out = capsys.readouterr().out
+    assert "world -> a" in out and "0.45 m" in out
+    assert "initial: invalid: rope r (too short) by 50.00 mm" in out
+    assert main(["simulate", str(path), "--json"]) == 0
+    assert '"outcome": "invalid"' in capsys.readouterr().out
