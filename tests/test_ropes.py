@@ -225,3 +225,15 @@ def test_check_and_simulate_name_a_rope_too_short(tmp_path, capsys):
     assert "initial: invalid: rope r (too short) by 50.00 mm" in out
     assert main(["simulate", str(path), "--json"]) == 0
     assert '"outcome": "invalid"' in capsys.readouterr().out
+
+
+def test_simulate_pulls_with_the_ropes():
+    # through simulate (the step loop of run.py), not only World.step: the light side rises
+    sc = scenario({"a": ball(0.1, x=-0.1, z=0.5), "b": ball(0.2, x=0.1, z=0.5)},
+                  {"r": {"ends": [{"object": "a"}, {"object": "b"}],
+                         "pulleys": [{"point": [-0.1, 0, 1.0]}, {"point": [0.1, 0, 1.0]}]}},
+                  events={"up": {"type": "rising", "body": "a", "min_linvel": 0.5}})
+    result = run(sc)
+    assert result.outcome is Outcome.SUCCESS
+    # 0.5 m/s at (m2 - m1) / (m1 + m2) g, to within a step
+    assert result.events[0].time == pytest.approx(0.5 / (G / 3), abs=0.005)
