@@ -89,6 +89,7 @@ BAD = [
     (drawing("M 0 0 L 10 0"), "spacing = 0.02, count = 3", "exactly one of count or spacing"),
     (drawing("M 0 0 L 10 0"), "spacing = 0.02, count_by = 1", "unknown key"),
     (drawing("M 0 0 L 10 0"), "spacing = 0.02, element = 3", "expected a string"),
+    (drawing("M 0 0 A 1e9 1e9 0 0 1 1e6 0"), "spacing = 0.02", "too long to follow"),
 ]
 
 

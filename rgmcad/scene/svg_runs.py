@@ -24,6 +24,8 @@ from rgmcad.scene import dominoes
 CHORD = 5e-4
 """Longest chord (m) standing for a piece of curve."""
 MAX_SVG_BYTES = 2 * 2**20
+MAX_POINTS = 200_000
+"""Points of the followed path (a 100 m curve at :data:`CHORD`)."""
 PX_TO_M = 0.0254 / 96
 """svgelements gives lengths in CSS pixels (96 per inch)."""
 _PHYSICAL = re.compile(r"\s*[0-9.eE+-]+\s*(mm|cm|in|pt|pc|q)\s*$", re.IGNORECASE)
@@ -66,6 +68,9 @@ def read_points(file: str | Path, element: str | None = None) -> np.ndarray:
             continue
         n = 1 if isinstance(seg, se.Line | se.Close) else max(
             2, math.ceil(seg.length() * PX_TO_M / CHORD))
+        if not len(points) + n <= MAX_POINTS:  # also refuses a length that is not a number
+            raise ValueError(f"{path.name}: the path is too long to follow (more than "
+                             f"{MAX_POINTS * CHORD:g} m of curves)")
         points.extend(_xy(seg.point(t)) for t in np.linspace(0, 1, n + 1)[1:])
     pts = np.asarray(points, float)
     keep = np.concatenate([[True], np.linalg.norm(np.diff(pts, axis=0), axis=1) > 1e-9])
