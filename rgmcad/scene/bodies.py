@@ -134,7 +134,9 @@ def _sub(obj: str, key: str) -> str:
 
 
 def _weld_groups(scenario: Scenario) -> tuple[tuple[str, ...], ...]:
-    """Connected components of the weld joints, in file order."""
+    """Connected components of the weld joints, in file order, each group's members in the
+    file's order of objects (the physics gives a group its first member's surface and damping
+    properties)."""
     parent: dict[str, str] = {}
 
     def find(x):
@@ -154,4 +156,5 @@ def _weld_groups(scenario: Scenario) -> tuple[tuple[str, ...], ...]:
         root = find(name)
         if name not in groups[root]:
             groups[root].append(name)
-    return tuple(tuple(g) for g in groups.values())
+    order = {name: i for i, name in enumerate(scenario.objects)}
+    return tuple(tuple(sorted(g, key=order.__getitem__)) for g in groups.values())
