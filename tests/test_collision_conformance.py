@@ -31,7 +31,14 @@ from scipy.spatial import ConvexHull
 
 from rgmcad.geometry import invert
 from rgmcad.parts.family import load_families, params_dict
-from rgmcad.parts.pieces import BoxPiece, ConvexPiece, CylinderPiece, PlanePiece, SpherePiece
+from rgmcad.parts.pieces import (
+    BoxPiece,
+    CapsulePiece,
+    ConvexPiece,
+    CylinderPiece,
+    PlanePiece,
+    SpherePiece,
+)
 from rgmcad.scene.bodies import Scene
 from rgmcad.scene.loader import load_scenario
 from rgmcad.sim.world import World
@@ -80,6 +87,11 @@ def _halfspaces(piece, frame: np.ndarray, pad: float):
 def _entry(piece, frame: np.ndarray, start: np.ndarray, end: np.ndarray, pad: float = 0.0):
     """Distance (m) from ``start`` at which the segment enters the piece grown by ``pad``;
     inf if it does not."""
+    if isinstance(piece, CapsulePiece):  # convex: entering it is entering one of its parts
+        ends = [frame @ np.array([[1, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1, z], [0, 0, 0, 1]])
+                for z in (-piece.length / 2, piece.length / 2)]
+        return min(_entry(CylinderPiece(piece.radius, piece.length), frame, start, end, pad),
+                   *(_entry(SpherePiece(piece.radius), e, start, end, pad) for e in ends))
     u = end - start
     length = float(np.linalg.norm(u))
     lo, hi = 0.0, 1.0
@@ -169,7 +181,7 @@ def shapes(monkeypatch):
 
 
 GEOM = {BoxPiece: pb.GEOM_BOX, SpherePiece: pb.GEOM_SPHERE, CylinderPiece: pb.GEOM_CYLINDER,
-        ConvexPiece: pb.GEOM_MESH, PlanePiece: pb.GEOM_PLANE}
+        CapsulePiece: pb.GEOM_CAPSULE, ConvexPiece: pb.GEOM_MESH, PlanePiece: pb.GEOM_PLANE}
 
 
 def check_counts(world: World, shapes) -> None:
@@ -289,7 +301,24 @@ def _sub_scene(scene: Scene, names: set[str]) -> Scene:
                  tuple(g for g in scene.welds if g[0] in names), scene.values)
 
 
-@pytest.mark.parametrize("path", SCENARIOS, ids=[p.stem for p in SCENARIOS])
+# LONGCHAIN's coin goblet is welded to a hinged lever with a counterweight: the probe then
+# comes at four wall sectors along the goblet's axis, grazing the leaning inner wall, and
+# pybullet meets them about 2 mm (normal to the wall) outside the exact piece, twice the 1 mm
+# margin allowed for hull children (a hinged link's children keep pybullet's default margin;
+# changeDynamics(collisionMargin=) reaches only a base's). Strict: it fails once that is fixed.
+# TEAPOT's bridge_blocker (a 10 x 25 x 5 mm box welded under the balance track) can only be
+# probed at an edge, which pybullet's box margin rounds: met 22 um late against 20 um allowed.
+KNOWN = {
+    "long_chain": pytest.mark.xfail(strict=True, reason="hull children of a hinged link: ~2 mm "
+                                    "margin (docs/decisions.md, issue 14)"),
+    "teapot": pytest.mark.xfail(strict=True, reason="a 5 mm box probed at its rounded edge, "
+                                "22 um late (docs/decisions.md, issue 14)"),
+}
+
+
+@pytest.mark.parametrize("path", [pytest.param(p, marks=KNOWN[p.stem]) if p.stem in KNOWN
+                                  else p for p in SCENARIOS],
+                         ids=[p.stem for p in SCENARIOS])
 def test_every_body_of_the_shipped_scenarios_collides_with_all_its_pieces(path, shapes):
     scenario = load_scenario(path)
     scene = scene_of(scenario)

@@ -24,6 +24,7 @@ from rgmcad.parts import build
 from rgmcad.parts.family import MAIN, load_families, params_dict
 from rgmcad.parts.pieces import (
     BoxPiece,
+    CapsulePiece,
     ConvexPiece,
     CylinderPiece,
     PlanePiece,
@@ -73,6 +74,9 @@ def distance_to_piece(points: np.ndarray, piece) -> np.ndarray:
         radial = np.hypot(q[:, 0], q[:, 1]) - piece.radius
         axial = np.abs(q[:, 2]) - piece.height / 2
         return np.hypot(np.maximum(radial, 0), np.maximum(axial, 0))
+    if isinstance(piece, CapsulePiece):
+        along = np.clip(q[:, 2], -piece.length / 2, piece.length / 2)
+        return np.maximum(np.hypot(np.hypot(q[:, 0], q[:, 1]), q[:, 2] - along) - piece.radius, 0)
     if isinstance(piece, ConvexPiece):
         equations = ConvexHull(piece.vertices).equations
         return np.maximum((q @ equations[:, :3].T + equations[:, 3]).max(axis=1), 0)
@@ -94,6 +98,9 @@ def piece_corners(piece) -> np.ndarray:
         half = np.abs(axis) * piece.height / 2 + piece.radius * np.sqrt(np.clip(1 - axis**2, 0, 1))
         centre = frame[:3, 3]
         return np.array([centre - half, centre + half])
+    elif isinstance(piece, CapsulePiece):
+        axis, centre = frame[:3, 2] * piece.length / 2, frame[:3, 3]
+        return np.array([centre - np.abs(axis) - piece.radius, centre + np.abs(axis) + piece.radius])
     else:
         local = np.asarray(piece.vertices)
     return local @ frame[:3, :3].T + frame[:3, 3]
@@ -107,6 +114,10 @@ def piece_manifold(piece) -> manifold3d.Manifold:
     elif isinstance(piece, CylinderPiece):
         solid = manifold3d.Manifold.cylinder(piece.height, piece.radius, piece.radius,
                                              circular_segments=256, center=True)
+    elif isinstance(piece, CapsulePiece):
+        ball = manifold3d.Manifold.sphere(piece.radius, circular_segments=256)
+        solid = manifold3d.Manifold.batch_hull([ball.translate((0, 0, -piece.length / 2)),
+                                                ball.translate((0, 0, piece.length / 2))])
     else:
         solid = manifold3d.Manifold.hull_points(np.asarray(piece.vertices, float))
     return solid.transform(np.asarray(piece.frame, float)[:3, :4])

@@ -5,10 +5,16 @@ import json
 from pathlib import Path
 
 import numpy as np
+import pybullet as pb
 import pytest
+from _support import scene_of
 from PIL import Image
 
 from rgmcad.cli import main
+from rgmcad.geometry import from_pybullet
+from rgmcad.scene.loader import parse_scenario
+from rgmcad.sim.render import Renderer
+from rgmcad.sim.world import World
 
 ROOT = Path(__file__).resolve().parent.parent
 SIMPLE = str(ROOT / "scenarios" / "simple.toml")
@@ -135,3 +141,45 @@ def test_video_is_slowed_down_and_shows_time_and_events_as_they_succeed(tmp_path
     # the time runs: the top right corner changes from frame to frame
     corner = [f[:20, -90:] for f in slow_frames[:40:10]]
     assert all(np.abs(a - b).sum() > 0 for a, b in zip(corner, corner[1:], strict=False))
+
+
+GOBLET = {"inner_height": 0.11, "top_radius": 0.036, "bottom_radius": 0.025, "wall": 0.002}
+
+
+def test_meshes_and_ropes_are_drawn_where_the_bodies_are():
+    sc = parse_scenario({
+        "name": "picture",
+        "objects": {
+            "cup": {"part": "goblet", "params": GOBLET, "mass": 0.01,
+                    "pose": {"x": 0.1, "z": 0.3, "roll": 180}},
+            "lever": {"part": "lever", "mass": 0.02, "pose": {"x": -0.2, "z": 0.1, "roll": 10},
+                      "params": {"length": 0.2, "width": 0.02, "thickness": 0.01,
+                                 "pivot_x": 0.05}},
+        },
+        "ropes": {"r": {"ends": [{"object": "cup"}, {"object": "lever", "point": [-0.1, 0, 0]}],
+                        "pulleys": [{"point": [0.1, 0, 0.5]}, {"point": [-0.3, 0, 0.5]}]}},
+        "events": {"e": {"type": "contact", "first": "cup", "second": "lever"}},
+    }, where="<test>")
+    scene = scene_of(sc)
+    with World(scene, sc.settings) as world:
+        for _ in range(50):
+            world.step()
+        renderer = Renderer(scene, 64, 64)
+        try:
+            renderer.image({name: world.pose(name) for name in renderer.ghosts})
+            cid = renderer.engine.cid
+            for name, ghost in renderer.ghosts.items():
+                drawn = from_pybullet(*pb.getBasePositionAndOrientation(ghost,
+                                                                        physicsClientId=cid))
+                np.testing.assert_allclose(drawn, world.pose(name), atol=1e-6, err_msg=name)
+            (_, beads), = renderer.ropes
+            at = np.array([pb.getBasePositionAndOrientation(b, physicsClientId=cid)[0]
+                           for b in beads])
+            pose = world.pose("lever")
+            hook = pose[:3, :3] @ [-0.1, 0, 0] + pose[:3, 3]
+            np.testing.assert_allclose(at[0], world.pose("cup")[:3, 3], atol=1e-9)
+            np.testing.assert_allclose(at[-1], hook, atol=1e-9)
+            for pulley in ([0.1, 0, 0.5], [-0.3, 0, 0.5]):  # the beads pass over both pulleys
+                assert np.linalg.norm(at - pulley, axis=1).min() < 0.003
+        finally:
+            renderer.close()

@@ -180,11 +180,11 @@ def test_shipped_scenarios_obey_the_law_and_warn_of_nothing(path, caplog):
 
 def _specs():
     tables = [schema.SIMULATION, schema.PHYSICAL, schema.POSE, schema.RUN, schema.DOMINO,
-              schema.EVENT_PARAMS, schema.EVENT, schema.POINT, schema.JOINT,
+              schema.EVENT_PARAMS, schema.EVENT, schema.POINT, schema.JOINT, schema.ROPE,
               *schema.PATHS.values()]
     for table in tables:
         for spec in table.values():
-            while not isinstance(spec, schema.Number | schema.Flag):
+            while not isinstance(spec, schema.Number | schema.Flag | schema.Text):
                 spec = spec.point if isinstance(spec, schema.Points) else spec.number
             yield spec
 
@@ -192,9 +192,10 @@ def _specs():
 def test_the_table_covers_every_key_and_bounds_every_number():
     assert list(schema.SIMULATION) == list(SIMULATION_KEYS)
     assert {p for t in EVENT_TYPES.values() for p in t.params} <= set(schema.EVENT_PARAMS)
-    from rgmcad.scene import dominoes
+    from rgmcad.scene.loader import PATH_MAKERS
 
-    for kind, make in dominoes.PATHS.items():
+    assert set(PATH_MAKERS) == set(schema.PATHS)
+    for kind, make in PATH_MAKERS.items():
         import inspect
 
         assert set(inspect.signature(make).parameters) == set(schema.PATHS[kind])

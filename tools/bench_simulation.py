@@ -5,11 +5,12 @@ successes and failures an optimisation run simulates), the mean wall time per
 simulation, the time inside pybullet's stepSimulation, the overhead (world build, validity,
 event checks, bookkeeping) as a share of the stepping time, and simulations per second on one
 core. Simulations share one engine (without pybullet's renderer) and one part cache, as in a
-worker process; the stepping time is that of as many raw steps of the same world. Also times
+worker process; the stepping time (the physics floor) is that of as many raw steps of the same
+world. Also times
 the validity test on a 50-body scene, and what a simulation given no engine pays for its
 own (connecting and disconnecting a pybullet client).
 
-    uv run python tools/bench_simulation.py [--repeat 5]
+    uv run python tools/bench_simulation.py [--repeat 5] [--scenarios long_chain,teapot]
 """
 
 import argparse
@@ -103,10 +104,13 @@ def main() -> None:
     parser = argparse.ArgumentParser()
     parser.add_argument("--repeat", type=int, default=2)
     parser.add_argument("--layouts", type=int, default=8, help="valid Sobol layouts per scenario")
+    parser.add_argument("--scenarios", default="", help="comma-separated names (default: all)")
     args = parser.parse_args()
+    only = set(filter(None, args.scenarios.split(",")))
     with Engine(renderer=False) as engine:
         for path in sorted(Path("scenarios").glob("*.toml")):
-            bench_scenario(path, args.repeat, args.layouts, engine)
+            if not only or path.stem in only:
+                bench_scenario(path, args.repeat, args.layouts, engine)
     bench_validity()
     bench_engine()
 

@@ -34,6 +34,13 @@ def run(args) -> int:
                 else f"{phys.density:g} kg/m3")
         rows.append((obj.name, obj.part, obj.parent or "-", kind))
     print_table(rows, ("name", "part", "parent", "mass"))
+    if scenario.ropes:
+        say(f"\nropes ({len(scenario.ropes)}):")
+        print_table([(r.name, " -> ".join(
+            [e.object or "world" for e in r.ends[:1]] + [f"{len(r.pulleys)} pulleys"] * bool(
+                r.pulleys) + [e.object or "world" for e in r.ends[1:]]),
+            f"{r.length:g} m" if r.length is not None else f"initial + {r.slack:g} m")
+            for r in scenario.ropes.values()], ("rope", "path", "length"))
     say(f"\nfree parameters (d = {scenario.dimension}):")
     print_table([(i, f.name, f"[{f.low:g}, {f.high:g}]", f.unit)
                  for i, f in enumerate(scenario.free)], ("#", "parameter", "range", "unit"))
@@ -48,7 +55,8 @@ def run(args) -> int:
     for name, mapping in scenario.layouts.items():
         values = values_from_mapping(scenario, mapping)
         validity = check_validity(make_scene(scenario, values, parts))
-        problems = [f"{o.first}/{o.second} overlap {o.depth * 1000:.2f} mm"
+        problems = [f"{o.first} by {o.depth * 1000:.2f} mm" if o.first.startswith("rope ")
+                    else f"{o.first}/{o.second} overlap {o.depth * 1000:.2f} mm"
                     for o in validity.overlaps] + _outside(scenario, values)
         bad += bool(problems)
         say(f"  {name}: " + ("valid, inside the design space" if not problems

@@ -88,7 +88,8 @@ def run(args) -> int:
     say(f"{scenario.name}, layout {name}")
     if result.outcome is Outcome.INVALID:
         for o in result.validity.overlaps:
-            say(f"  {o.first} and {o.second} overlap by {o.depth * 1000:.2f} mm")
+            say(f"  {o.first} by {o.depth * 1000:.2f} mm" if o.first.startswith("rope ")
+                else f"  {o.first} and {o.second} overlap by {o.depth * 1000:.2f} mm")
     else:
         rows = [(e.name, e.state, "" if e.time is None else f"{e.time:.3f}")
                 for e in sorted(result.events, key=lambda e: (e.time is None, e.time or 0))]

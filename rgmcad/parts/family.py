@@ -31,6 +31,7 @@ from pathlib import Path
 from rgmcad.errors import ScenarioError
 from rgmcad.parts.pieces import (
     BoxPiece,
+    CapsulePiece,
     ConvexPiece,
     CylinderPiece,
     Piece,
@@ -43,7 +44,7 @@ from rgmcad.shipped import shipped_dir
 # (:func:`family_digest`), so moving that import would rename every built part.
 __all__ = [
     "MAIN", "Family", "Hinge", "load_families", "family_digest", "params_dict", "DEFAULT_PARTS_DIR",
-    "BoxPiece", "ConvexPiece", "CylinderPiece", "Piece", "PlanePiece", "SpherePiece",
+    "BoxPiece", "CapsulePiece", "ConvexPiece", "CylinderPiece", "Piece", "PlanePiece", "SpherePiece",
 ]
 
 MAIN = ""

@@ -86,6 +86,24 @@ class CylinderPiece(_Piece):
 
 
 @dataclass(frozen=True, eq=False)
+class CapsulePiece(_Piece):
+    """A capsule along its frame's Z axis, centred on its frame: the points within ``radius``
+    of the segment of ``length`` between its two hemispheres' centres."""
+
+    radius: float
+    length: float
+    frame: np.ndarray = field(default_factory=_identity)
+    kind: ClassVar[str] = "capsule"
+
+    def _fields_dict(self) -> dict:
+        return {"radius": float(self.radius), "length": float(self.length)}
+
+    @classmethod
+    def _from_fields(cls, data: Mapping, frame: np.ndarray):
+        return cls(data["radius"], data["length"], frame)
+
+
+@dataclass(frozen=True, eq=False)
 class ConvexPiece(_Piece):
     """The convex hull of ``vertices`` (n, 3), given in the piece's frame."""
 
@@ -109,12 +127,13 @@ class PlanePiece(_Piece):
     kind: ClassVar[str] = "plane"
 
 
-Piece = BoxPiece | SpherePiece | CylinderPiece | ConvexPiece | PlanePiece
+Piece = BoxPiece | SpherePiece | CylinderPiece | CapsulePiece | ConvexPiece | PlanePiece
 
 PIECES: dict[str, type] = {
     "box": BoxPiece,
     "sphere": SpherePiece,
     "cylinder": CylinderPiece,
+    "capsule": CapsulePiece,
     "convex": ConvexPiece,
     "plane": PlanePiece,
 }

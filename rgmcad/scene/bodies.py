@@ -18,6 +18,7 @@ from rgmcad.parts.family import MAIN
 from rgmcad.parts.store import DEFAULT_BUILD_DIR, BuiltBody, BuiltPart, as_store
 from rgmcad.scene.design_space import world_poses
 from rgmcad.scene.model import FRAME, Physical, Scenario
+from rgmcad.scene.ropes import SceneRope, scene_ropes
 
 
 @dataclass(frozen=True, eq=False)
@@ -69,6 +70,7 @@ class Scene:
     hinges: tuple[Hinge, ...]
     welds: tuple[tuple[str, ...], ...]  # groups of bodies that move as one
     values: np.ndarray  # the real parameter values that made it
+    ropes: tuple[SceneRope, ...] = ()
 
     def jointed_pairs(self) -> set[frozenset[str]]:
         """Pairs of bodies that never collide with each other (joined by a joint)."""
@@ -123,7 +125,8 @@ def make_scene(scenario: Scenario, values, parts: Mapping[str, BuiltPart]) -> Sc
             hinges.append(Hinge(moving, fixed,
                                 transform_points(pose, np.asarray([joint.point], float))[0],
                                 pose[:3, :3] @ (axis / np.linalg.norm(axis))))
-    return Scene(bodies, tuple(hinges), welds, np.asarray(values, float))
+    return Scene(bodies, tuple(hinges), welds, np.asarray(values, float),
+                 scene_ropes(scenario, poses))
 
 
 def _sub(obj: str, key: str) -> str:
@@ -131,7 +134,9 @@ def _sub(obj: str, key: str) -> str:
 
 
 def _weld_groups(scenario: Scenario) -> tuple[tuple[str, ...], ...]:
-    """Connected components of the weld joints, in file order."""
+    """Connected components of the weld joints, in file order, each group's members in the
+    file's order of objects (the physics gives a group its first member's surface and damping
+    properties)."""
     parent: dict[str, str] = {}
 
     def find(x):
@@ -151,4 +156,5 @@ def _weld_groups(scenario: Scenario) -> tuple[tuple[str, ...], ...]:
         root = find(name)
         if name not in groups[root]:
             groups[root].append(name)
-    return tuple(tuple(g) for g in groups.values())
+    order = {name: i for i, name in enumerate(scenario.objects)}
+    return tuple(tuple(sorted(g, key=order.__getitem__)) for g in groups.values())

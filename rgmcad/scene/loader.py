@@ -22,7 +22,7 @@ import numpy as np
 from rgmcad.errors import ScenarioError
 from rgmcad.geometry import POSE_KEYS
 from rgmcad.parts.family import load_families
-from rgmcad.scene import dominoes
+from rgmcad.scene import dominoes, svg_runs
 from rgmcad.scene.loader_checks import (
     check_keys,
     check_name,
@@ -33,6 +33,7 @@ from rgmcad.scene.loader_checks import (
     read_text,
 )
 from rgmcad.scene.loader_events import parse_events
+from rgmcad.scene.loader_ropes import parse_ropes
 from rgmcad.scene.model import (
     FRAME,
     PHYSICAL_KEYS,
@@ -67,9 +68,11 @@ from rgmcad.scene.schema import (
     warnings_after_loading,
 )
 
-TOP_KEYS = ("name", "description", "simulation", "objects", "runs", "joints", "events",
+TOP_KEYS = ("name", "description", "simulation", "objects", "runs", "joints", "ropes", "events",
             "layouts")
 OBJECT_KEYS = ("part", "params", "parent", "pose", "free", "note", *PHYSICAL_KEYS)
+PATH_MAKERS = {**dominoes.PATHS, "svg": svg_runs.svg}
+COUNTERS = {"polyline": dominoes.polyline_count, "svg": svg_runs.svg_count}
 RUN_KEYS = ("domino", "path", "tilt", "parent", "pose", "free", "note", *PHYSICAL_KEYS)
 NO_PARTS_KEY = ("a scenario file cannot load part families (a folder of part files is Python "
                 "code, and a scenario is data); pass --parts DIR on the command line instead: "
@@ -170,7 +173,8 @@ def _parse(data, where, path, parts_dir) -> Scenario:
         objects[run_name] = SceneObject(run_name, FRAME, None, Physical(),
                                         _parse_parent(raw, where, key), pose)
         free.extend(_parse_free(raw.get("free", {}), run_name, where, f"{key}.free"))
-        names = _expand_run(run_name, raw, families, objects, where, key)
+        names = _expand_run(run_name, raw, families, objects, where, key,
+                            path.parent if path else Path("."))
         runs[run_name] = tuple(names)
         if len(objects) > MAX_BODIES:
             raise ScenarioError(where, key, f"this run brings the scenario to {len(objects):,} "
@@ -182,6 +186,7 @@ def _parse(data, where, path, parts_dir) -> Scenario:
                             f"{MAX_FREE:,} (the dimension of the design space)")
     _check_parents(objects, runs, where)
     joints = _parse_joints(data.get("joints", []), objects, families, where)
+    ropes = parse_ropes(data.get("ropes", {}), objects, where)
     events = parse_events(data.get("events", {}), objects, families, runs, where, settings)
     layouts = _parse_layouts(data.get("layouts", {}), objects, free, where)
 
@@ -189,7 +194,7 @@ def _parse(data, where, path, parts_dir) -> Scenario:
         name=name, path=path,
         description=expect(data.get("description", ""), str, where, "description"),
         objects=objects, free=tuple(free), joints=joints, events=events, settings=settings,
-        layouts=layouts, families=families, runs=runs,
+        layouts=layouts, families=families, runs=runs, ropes=ropes,
     )
     if not events:
         raise ScenarioError(where, "events", "a scenario needs a causal graph of at least one event")
@@ -210,7 +215,7 @@ def _note_sizes(params, where, key) -> None:
             warn(f"{where}: {key}.{f.name}: {value:g} m is unusual: {MM_AS_M}")
 
 
-def _expand_run(run_name, raw, families, objects, where, key) -> list[str]:
+def _expand_run(run_name, raw, families, objects, where, key, folder) -> list[str]:
     domino = expect(raw.get("domino"), dict, where, f"{key}.domino")
     check_keys(domino, tuple(DOMINO), where, f"{key}.domino")
     size = {}
@@ -225,7 +230,7 @@ def _expand_run(run_name, raw, families, objects, where, key) -> list[str]:
     params = families["box"].make_params(
         {"length": size["thickness"], "width": size["width"], "height": size["height"]},
         where=where, key=f"{key}.domino")
-    coords = _run_path(raw, where, key)
+    coords = _run_path(raw, where, key, folder)
     tilt = RUN["tilt"].read(raw.get("tilt", 0.0), where, f"{key}.tilt")
     physical = _parse_physical(raw, where, key)
     names = []
@@ -242,9 +247,10 @@ def _expand_run(run_name, raw, families, objects, where, key) -> list[str]:
     return names
 
 
-def _run_path(raw, where, key) -> np.ndarray:
+def _run_path(raw, where, key, folder: Path) -> np.ndarray:
     """(n, 3) domino positions and headings of a run's ``path``, every parameter checked
-    against :data:`~rgmcad.scene.schema.PATHS` (and the count bounded) before any is made."""
+    against :data:`~rgmcad.scene.schema.PATHS` (and the count bounded) before any is made;
+    an SVG file is found relative to ``folder``, the scenario file's."""
     path = expect(raw.get("path"), dict, where, f"{key}.path")
     kind = path.get("kind")
     if not isinstance(kind, str) or kind not in PATHS:
@@ -254,13 +260,15 @@ def _run_path(raw, where, key) -> np.ndarray:
     check_keys(path, ("kind", *table), where, f"{key}.path")
     args = {k: spec.read(path[k], where, f"{key}.path.{k}")
             for k, spec in table.items() if k in path}
-    make = dominoes.PATHS[kind]
+    if "file" in args:
+        args["file"] = str(folder / args["file"])
+    make = PATH_MAKERS[kind]
     for p in inspect.signature(make).parameters.values():
         if p.default is p.empty and p.name not in args:
             raise ScenarioError(where, f"{key}.path.{p.name}", f"a {kind} path needs "
                                 f"{p.name} ({table[p.name].describe(p.name)})")
     try:
-        n = dominoes.polyline_count(**args) if kind == "polyline" else 0
+        n = COUNTERS[kind](**args) if kind in COUNTERS else 0
         coords = None if n > MAX_RUN else make(**args)
     except ValueError as exc:
         raise ScenarioError(where, f"{key}.path", f"bad {kind} path: {exc}") from None

@@ -94,6 +94,32 @@ class Joint:
 
 
 @dataclass(frozen=True)
+class RopePoint:
+    """A point a rope is tied to or runs over: ``point`` (3,) m in the part frame of
+    ``object``, or in the world when ``object`` is None. A point of a static body or of a
+    frame stays where the layout puts it."""
+
+    object: str | None
+    point: tuple[float, float, float] = (0.0, 0.0, 0.0)
+
+
+@dataclass(frozen=True)
+class Rope:
+    """An inextensible rope that can go slack and only pulls (see :mod:`rgmcad.sim.ropes`).
+
+    It runs from ``ends[0]`` over the fixed ``pulleys`` points, in order, to ``ends[1]``;
+    its length is ``length`` (m), or, when that is None, the layout's initial length plus
+    ``slack`` (m): the authors' tension rope, which every layout fits.
+    """
+
+    name: str
+    ends: tuple[RopePoint, RopePoint]
+    pulleys: tuple[RopePoint, ...] = ()
+    length: float | None = None
+    slack: float = 0.0
+
+
+@dataclass(frozen=True)
 class EventSpec:
     """One node of the causal graph.
 
@@ -161,6 +187,7 @@ class Scenario:
     layouts: dict[str, dict[str, float]]  # name -> {free parameter name: real value}
     families: dict[str, Family] = field(repr=False, default_factory=dict)
     runs: dict[str, tuple[str, ...]] = field(default_factory=dict)  # run -> domino names
+    ropes: dict[str, Rope] = field(default_factory=dict)  # file order
 
     @property
     def dimension(self) -> int:

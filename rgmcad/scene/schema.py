@@ -47,6 +47,9 @@ MAX_NAME = 100
 """Characters of a name (scenario, object, run, event, layout)."""
 MAX_STEPS = 1_000_000
 """Simulation steps of one run: duration / timestep."""
+MAX_ROPES = 100
+MAX_PULLEYS = 100
+"""Pulley points of one rope."""
 MIN_RANGE = 1e-6
 """Narrowest free range (m or deg): a narrower one maps tiny moves to huge design vectors."""
 
@@ -56,6 +59,8 @@ LIMITS = {
     "dominoes per run": f"{MAX_RUN:,}",
     "events": f"{MAX_EVENTS:,}",
     "joints": f"{MAX_JOINTS:,}",
+    "ropes": f"{MAX_ROPES:,}",
+    "pulleys per rope": f"{MAX_PULLEYS:,}",
     "free parameters": f"{MAX_FREE:,}",
     "layouts": f"{MAX_LAYOUTS:,}",
     "levels of parents": f"{MAX_DEPTH:,}",
@@ -163,6 +168,23 @@ class Vector:
 
 
 @dataclass(frozen=True)
+class Text:
+    """A string of 1 to ``longest`` printable characters (a file name, an id)."""
+
+    what: str
+    longest: int = 1000
+
+    def describe(self, name: str = "x") -> str:
+        return f"a string ({self.what}), 1 to {self.longest:,} characters"
+
+    def read(self, value, where: str, key: str) -> str:
+        if (not isinstance(value, str) or not 1 <= len(value) <= self.longest
+                or not value.isprintable()):
+            raise ScenarioError(where, key, f"expected {self.describe()}, got {show(value)}")
+        return value
+
+
+@dataclass(frozen=True)
 class Points:
     """A list of ``low``..``high`` [x, y] pairs."""
 
@@ -243,6 +265,9 @@ PATHS = {
                                  why=f"2 x count - 1 <= {MAX_RUN:,} dominoes per run; odd"),
                  "width": SIZE, "origin": XY, "angle": ANGLE},
     "polyline": {"points": Points(XY, 2, MAX_POINTS), "count": COUNT, "spacing": SIZE},
+    "svg": {"file": Text("an SVG file, relative to the scenario file"),
+            "element": Text("the id of a <path> in it; default: its first path"),
+            "count": COUNT, "spacing": SIZE},
 }
 """``path = { kind = ..., ... }`` of a run: the parameters of each kind."""
 
@@ -261,6 +286,10 @@ EVENT_PARAMS = {
 EVENT = {"timeout": Number("s", 0, 600, open_low=True), "hold": Number("s", 0, 600)}
 POINT = {"x": POSITION, "y": POSITION, "z": POSITION}
 JOINT = {"point": Vector(POSITION, 3), "axis": Vector(Number("", -1000, 1000), 3, nonzero=True)}
+ROPE = {"length": Number("m", 1e-4, 100, usual=(0, 10), slip=("", MM_AS_M)),
+        "slack": Number("m", 0, 100, usual=(0, 10), slip=("", MM_AS_M)),
+        "point": Vector(POSITION, 3)}
+"""``[ropes.NAME]``: the rope's length or slack, and the ``point`` of each end and pulley."""
 VECTOR = Number("", 0, 1)
 """Each entry of a design vector (``--vector``, a layout file's ``vector``)."""
 
@@ -298,6 +327,8 @@ def rows() -> Iterator[tuple[str, str, object]]:
         add("events: `point`", k, s)
     for k, s in JOINT.items():
         add("joints", k, s)
+    for k, s in ROPE.items():
+        add("ropes", k, s)
     for where, keys, spec in groups:
         yield where, ", ".join(f"`{k}`" for k in keys), spec
 

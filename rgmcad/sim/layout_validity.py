@@ -12,6 +12,7 @@ import numpy as np
 
 from rgmcad.parts.pieces import BoxPiece
 from rgmcad.parts.store import BuiltBody
+from rgmcad.scene.ropes import ropes_fit_many
 from rgmcad.sim.cache import PartCache
 from rgmcad.sim.validity import (
     _PRIMITIVES,
@@ -132,6 +133,7 @@ class LayoutValidity:
         if n == 0 or m == 0:
             return valid
         world = world_poses_many(self.scenario, values)
+        valid &= ropes_fit_many(self.scenario, world, tol)  # ropes long enough for their path
         poses = np.stack([world[b.object] for b in self.solids], axis=1)  # (m, n, 4, 4)
         rot = poses[..., :3, :3]
         centres = np.einsum("mnij,nj->mni", rot, self.local_centres) + poses[..., :3, 3]

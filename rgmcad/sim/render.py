@@ -24,6 +24,8 @@ from rgmcad.scene.bodies import Scene
 from rgmcad.sim.causal import EventState
 from rgmcad.sim.engine import Engine, pb
 
+BEAD = 0.0015
+"""Radius (m) of the beads a rope is drawn with (one every four radii along it)."""
 MAX_SIDE = 16384
 """Largest side of a picture, pixels (callers choose their own, smaller limits)."""
 SUPERSAMPLE_UP_TO = 4096
@@ -87,6 +89,11 @@ class Renderer:
                 pb.GEOM_MESH, vertices=v.tolist(), indices=f.ravel().tolist(),
                 normals=n.tolist(), rgbaColor=colour, specularColor=[0.15, 0.15, 0.15])
             self.ghosts[body.name] = self.engine.createMultiBody(0, -1, shape)
+        self.posed = {name: body.pose for name, body in scene.bodies.items()}
+        bead = self.engine.createVisualShape(pb.GEOM_SPHERE, radius=BEAD,
+                                             rgbaColor=(0.25, 0.2, 0.15, 1.0))
+        self.ropes = [(rope, [self.engine.createMultiBody(0, -1, bead) for _ in range(
+            int(np.clip(rope.length / (4 * BEAD), 2, 400)))]) for rope in scene.ropes]
         points = np.vstack([b.world_vertices() for b in solid] or [np.zeros((1, 3))])
         self.lo, self.hi = points.min(axis=0), points.max(axis=0)
         for body in scene.bodies.values():
@@ -130,10 +137,25 @@ class Renderer:
             fov, self.width / self.height, distance / 20, distance * 3)
 
     def place(self, poses: Mapping[str, np.ndarray]) -> None:
-        """Move the bodies named in ``poses`` (world (4, 4) poses of their part frames)."""
+        """Move the bodies named in ``poses`` (world (4, 4) poses of their part frames), and
+        the ropes tied to them."""
         for name, pose in poses.items():
             pos, orn = to_pybullet(pose)
             self.engine.resetBasePositionAndOrientation(self.ghosts[name], pos, orn)
+        self.posed.update(poses)
+        for rope, beads in self.ropes:  # beads evenly spaced along the rope's path now
+            points = rope.points.copy()
+            for end, (body, local) in enumerate(zip(rope.bodies, rope.local, strict=True)):
+                if body is not None:
+                    pose = self.posed[body]
+                    points[-end] = pose[:3, :3] @ local + pose[:3, 3]
+            cum = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(points, axis=0),
+                                                                  axis=1))])
+            for bead, s in zip(beads, np.linspace(0.0, cum[-1], len(beads)), strict=True):
+                k = min(int(np.searchsorted(cum, s, side="right")) - 1, len(points) - 2)
+                t = (s - cum[k]) / max(cum[k + 1] - cum[k], 1e-12)
+                at = points[k] + t * (points[k + 1] - points[k])
+                self.engine.resetBasePositionAndOrientation(bead, at.tolist(), [0, 0, 0, 1])
 
     def project(self, points: np.ndarray) -> np.ndarray:
         """(n, 2) pixel coordinates (x right, y down) of world points (n, 3)."""

@@ -25,7 +25,15 @@ from functools import singledispatch
 import numpy as np
 
 from rgmcad.geometry import to_pybullet, transform_points
-from rgmcad.parts.pieces import BoxPiece, ConvexPiece, CylinderPiece, Piece, PlanePiece, SpherePiece
+from rgmcad.parts.pieces import (
+    BoxPiece,
+    CapsulePiece,
+    ConvexPiece,
+    CylinderPiece,
+    Piece,
+    PlanePiece,
+    SpherePiece,
+)
 from rgmcad.sim.cache import PartCache
 from rgmcad.sim.engine import pb
 
@@ -67,6 +75,11 @@ def _(piece: SpherePiece) -> dict:
 @shape_arguments.register
 def _(piece: CylinderPiece) -> dict:
     return {"shapeType": pb.GEOM_CYLINDER, "radius": piece.radius, "height": piece.height}
+
+
+@shape_arguments.register
+def _(piece: CapsulePiece) -> dict:  # pybullet's height: between the hemispheres' centres
+    return {"shapeType": pb.GEOM_CAPSULE, "radius": piece.radius, "height": piece.length}
 
 
 @shape_arguments.register

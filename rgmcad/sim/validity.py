@@ -27,7 +27,7 @@ import manifold3d
 import numpy as np
 
 from rgmcad.geometry import invert, transform_points
-from rgmcad.parts.pieces import BoxPiece, CylinderPiece, SpherePiece
+from rgmcad.parts.pieces import BoxPiece, CapsulePiece, CylinderPiece, SpherePiece
 from rgmcad.parts.store import BuiltBody
 from rgmcad.scene.bodies import Scene, SceneBody
 from rgmcad.sim.cache import PartCache
@@ -122,6 +122,12 @@ def _(piece: BoxPiece, points: np.ndarray) -> np.ndarray:
 def _(piece: CylinderPiece, points: np.ndarray) -> np.ndarray:  # axis z
     return _box_distance(np.stack([np.hypot(points[:, 0], points[:, 1]) - piece.radius,
                                    np.abs(points[:, 2]) - piece.height / 2], axis=1))
+
+
+@signed_distances.register
+def _(piece: CapsulePiece, points: np.ndarray) -> np.ndarray:  # axis z
+    along = np.clip(points[:, 2], -piece.length / 2, piece.length / 2)
+    return np.linalg.norm(points - np.outer(along, [0, 0, 1]), axis=1) - piece.radius
 
 
 def _box_distance(q: np.ndarray) -> np.ndarray:
@@ -250,4 +256,6 @@ def check_validity(
                 overlaps.append(Overlap(a.name, b.name, depth, volume))
                 if stop_at_first:
                     break
+    overlaps.extend(Overlap(f"rope {r.name} (too short)", "its path", r.excess, 0.0)
+                    for r in scene.ropes if r.excess > tolerance)  # depth: missing length
     return Validity(not overlaps, tuple(overlaps), tested)

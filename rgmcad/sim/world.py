@@ -34,6 +34,7 @@ from rgmcad.scene.model import SimulationSettings
 from rgmcad.sim.cache import PartCache
 from rgmcad.sim.engine import Engine, pb
 from rgmcad.sim.inertia import inertial_frame
+from rgmcad.sim.ropes import with_ropes
 from rgmcad.sim.shapes import collision_shape
 
 
@@ -98,7 +99,8 @@ class World:
         except BaseException:
             self.close()
             raise
-        self._step = functools.partial(pb.stepSimulation, self.cid)  # positional: cheaper
+        # positional client id: cheaper; ropes pull before each step
+        self._step = with_ropes(self, scene, functools.partial(pb.stepSimulation, self.cid))
         self._dt = settings.timestep
 
     def close(self) -> None:
