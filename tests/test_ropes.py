@@ -11,8 +11,9 @@ from _support import PARTS, run, scene_of
 from rgmcad.errors import ScenarioError
 from rgmcad.scene.bodies import load_parts
 from rgmcad.scene.loader import parse_scenario
+from rgmcad.sim.layout_validity import LayoutValidity
 from rgmcad.sim.run import Outcome
-from rgmcad.sim.validity import LayoutValidity, check_validity
+from rgmcad.sim.validity import check_validity
 from rgmcad.sim.world import World
 
 G = 9.81
@@ -219,11 +220,11 @@ def test_check_and_simulate_name_a_rope_too_short(tmp_path, capsys):
     path.write_text('name = "short"\n[objects.a]\npart = "ball"\nparams = { radius = 0.02 }\n'
                     'mass = 0.1\npose = { z = 0.5 }\n[ropes.r]\nends = [{ point = [0, 0, 1] }, '
                     '{ object = "a" }]\nlength = 0.45\n[events.e]\ntype = "falling"\nbody = "a"\n')
-    assert main(["check", str(path)]) == 0
+    assert main(["check", str(path)]) == 1  # a named layout is invalid
     out = capsys.readouterr().out
     assert "world -> a" in out and "0.45 m" in out
-    assert "initial: invalid: rope r (too short) by 50.00 mm" in out
-    assert main(["simulate", str(path), "--json"]) == 0
+    assert "initial: INVALID: rope r (too short) by 50.00 mm" in out
+    assert main(["simulate", str(path), "--json"]) == 1
     assert '"outcome": "invalid"' in capsys.readouterr().out
 
 

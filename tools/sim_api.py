@@ -30,7 +30,10 @@ def load_api() -> SimpleNamespace:
         from rgmcad.sim.cache import PartCache
         from rgmcad.sim.engine import Engine
 
-        engine, cache = Engine(renderer=False), PartCache()
+        import inspect
+
+        quiet = "renderer" in inspect.signature(Engine).parameters  # absent before issue 15
+        engine, cache = (Engine(renderer=False) if quiet else Engine()), PartCache()
         shared = {"engine": engine, "cache": cache}
         plain = simulate
 
