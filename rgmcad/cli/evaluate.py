@@ -29,6 +29,10 @@ def configure(p: argparse.ArgumentParser) -> None:
     p.add_argument("--workers", type=int, default=None, help="simulation processes, 1 to 4 per "
                    "CPU (default: every CPU); results do not depend on it")
     add_scheduler_args(p)
+    p.add_argument("--physics", default="default", metavar="RANGES", help="physical errors "
+                   "added to placement errors for the second rho_g: 'default' (friction "
+                   "+-20 %%, mass +-10 %%, restitution +-20 %%), KEY=RANGE,... (e.g. "
+                   "friction=0.3,mass=0.05) or 'off' (placement only; half the simulations)")
     p.add_argument("--out", metavar="FILE.png", help="the plot (default: next to a layout file, "
                    "or robustness-SCENARIO-LAYOUT.png here)")
     p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
@@ -64,10 +68,12 @@ def run(args) -> int:
     from rgmcad.cli.paths import output_file
     from rgmcad.runs.checks import MAX_SAMPLES, MAX_SEED, check_range, check_workers, plot_suffixes
     from rgmcad.runs.workflow import evaluate_layout
+    from rgmcad.scene.perturbation import parse_physics_ranges
 
     check_range(args.samples, 1, MAX_SAMPLES, "--samples", "a number of layouts per radius")
     check_range(args.seed, 0, MAX_SEED, "--seed", "a seed")
     check_workers(args.workers)
+    physics = parse_physics_ranges(args.physics)
     if args.out is not None:  # and again, trying, by the workflow, with its default
         output_file(args.out, "--out", plot_suffixes())
     note_first_build(args)
@@ -76,7 +82,8 @@ def run(args) -> int:
         result = evaluate_layout(args.scenario, args.layout, samples=args.samples,
                                  seed=args.seed, workers=args.workers,
                                  build_dir=args.build_dir, plot=args.out, progress=bar,
-                                 parts_dir=parts_dir_arg(args), scheduler=args.scheduler)
+                                 parts_dir=parts_dir_arg(args), scheduler=args.scheduler,
+                                 physics=physics)
     finally:
         bar.close()
     if args.json:
@@ -84,10 +91,18 @@ def run(args) -> int:
         return 0
     low, high = result["rho_g_interval"]
     say(f"{result['scenario']}, layout {result['layout']}: rho_g = {result['rho_g']:.3f} "
-        f"[{low:.3f}, {high:.3f}] from {result['simulations']} simulations "
-        f"in {result['wall_time']:.0f} s")
-    say("eps     rho_l   95 % interval")
-    for e, r, lo, hi in result["curve"][::3]:
-        say(f"{e:5.3f}   {r:5.3f}   [{lo:.3f}, {hi:.3f}]")
+        f"[{low:.3f}, {high:.3f}] under placement errors, from {result['simulations']} "
+        f"simulations in {result['wall_time']:.0f} s")
+    phys = result["physics"]
+    if phys is not None:
+        low, high = phys["rho_g_interval"]
+        say(f"  rho_g = {phys['rho_g']:.3f} [{low:.3f}, {high:.3f}] under placement plus "
+            f"physical errors ({physics.describe()})")
+    say("eps     rho_l   95 % interval" + ("      + physics" if phys else ""))
+    rows = zip(result["curve"], phys["curve"] if phys else [None] * len(result["curve"]),
+               strict=True)
+    for (e, r, lo, hi), other in list(rows)[::3]:
+        more = "" if other is None else f"     {other[1]:5.3f}   [{other[2]:.3f}, {other[3]:.3f}]"
+        say(f"{e:5.3f}   {r:5.3f}   [{lo:.3f}, {hi:.3f}]{more}")
     say(f"plot: {result['plot']}")
     return 0

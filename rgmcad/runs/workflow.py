@@ -58,6 +58,7 @@ from rgmcad.runs.store import (
     RunStore,
     run_identity,
 )
+from rgmcad.scene.perturbation import DEFAULT_PHYSICS, PhysicsRanges
 from rgmcad.sim.run import Outcome
 
 __all__ = ["LAYOUT_FILE", "START_FILE", "RunProgress", "OptimizationRun", "default_run_dir",
@@ -351,9 +352,12 @@ def evaluate_layout(
     workers: int | None = None, build_dir: str | Path = DEFAULT_BUILD_DIR,
     plot: str | Path | None = None, progress: RunProgress | None = None,
     parts_dir: str | Path | None = None, scheduler: str | None = None,
+    physics: PhysicsRanges | None = DEFAULT_PHYSICS,
 ) -> dict:
     """Local robustness of a layout at every radius and its global robustness rho_g
-    (:func:`~rgmcad.runs.robustness.local_robustness`), and their plot.
+    (:func:`~rgmcad.runs.robustness.local_robustness`), and their plot; with ``physics``
+    (default: :data:`~rgmcad.scene.perturbation.DEFAULT_PHYSICS`; None: placement only),
+    also under placement plus physical errors, on the same layouts.
 
     Parameters
     ----------
@@ -399,26 +403,34 @@ def evaluate_layout(
         progress.tested(len(X))
         return ok
 
-    def simulate(X):
-        progress.stage("simulation", len(X))
+    def simulate(X, draws=None):
+        progress.stage("simulation" if draws is None else "simulation + physics", len(X))
+        draws = [None] * len(X) if draws is None else draws
         out = []
         # local_robustness simulates only layouts that validity() passed: not tested again
-        for r in executor.map_context(simulate_layout_task, [(x, True) for x in X]):
+        items = [(x, True, d) for x, d in zip(X, draws, strict=True)]
+        for r in executor.map_context(simulate_layout_task, items):
             out.append(r)
             progress.simulated(r)
         return out
 
     try:
-        curve = local_robustness(x, validity, simulate, samples, seed)
+        curve = local_robustness(x, validity, simulate, samples, seed, physics=physics)
     finally:
         executor.close()
     wall = time.perf_counter() - start
     plot_curves({name: curve}, plot, title=f"{scenario.name}: local robustness of {name}")
-    return {
+    out = {
         "scenario": scenario.name, "layout": name, "vector": [float(v) for v in x],
         "rho_g": curve.rho_g, "rho_g_interval": [curve.rho_g_low, curve.rho_g_high],
         "curve": curve.curve(), "counts": [int(c) for c in curve.counts],
         "simulations": curve.simulations, "validity_tests": curve.validity_tests,
         "samples_per_radius": samples, "eta": curve.eta, "seed": seed,
-        "wall_time": wall, "plot": str(plot),
+        "wall_time": wall, "plot": str(plot), "physics": None,
     }
+    if curve.physics is not None:
+        p = curve.physics
+        out["physics"] = {"ranges": physics.to_json(), "rho_g": p.rho_g,
+                          "rho_g_interval": [p.rho_g_low, p.rho_g_high], "curve": p.curve(),
+                          "simulations": p.simulations}
+    return out
