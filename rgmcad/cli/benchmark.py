@@ -52,6 +52,9 @@ def configure(p: argparse.ArgumentParser) -> None:
                    "paper's Table 1 settings)")
     p.add_argument("--workers", type=int, default=None, help="simulation processes, 1 to 4 per "
                    "CPU (default: every CPU); results do not depend on it")
+    p.add_argument("--physics", default="default", metavar="RANGES", help="physical errors of "
+                   "the second rho_g column: 'default' (friction +-20 %%, mass +-10 %%, "
+                   "restitution +-20 %%), KEY=RANGE,... or 'off'")
     p.add_argument("--json", action="store_true", help="print the table as one JSON object")
     add_scheduler_args(p)
 
@@ -75,8 +78,10 @@ def run(args) -> int:
     from rgmcad.runs.benchmark import DEFAULT_METHODS, TABLE_MD, run_benchmark
     from rgmcad.runs.checks import check_workers
     from rgmcad.scene.loader import load_scenario
+    from rgmcad.scene.perturbation import parse_physics_ranges
 
     check_workers(args.workers)
+    physics = parse_physics_ranges(args.physics)
     parts_dir = parts_dir_arg(args)
     scenario = load_scenario(args.scenario, parts_dir=parts_dir)  # refused before any folder
     out = args.out if args.out is not None else str(Path("benchmarks") / scenario.name)
@@ -85,7 +90,7 @@ def run(args) -> int:
                           trials=args.trials, seed=args.seed, budget_sims=args.budget_sims,
                           samples=args.samples, ours_budget=args.ours_budget,
                           workers=args.workers, build_dir=args.build_dir, progress=_Stages(),
-                          scheduler=args.scheduler, parts_dir=parts_dir)
+                          scheduler=args.scheduler, parts_dir=parts_dir, physics=physics)
     if args.json:
         say(json.dumps(table))
         return 0
