@@ -155,3 +155,24 @@ def test_bad_ranges_in_settings_name_the_key():
         PhysicsRanges(friction=1.5)
     with pytest.raises(UsageError, match="restitution"):
         PhysicsRanges(restitution=float("nan"))
+
+
+def test_optimize_reports_both_robustness_figures(tmp_path):
+    code, out, _ = _evaluate(["optimize", RAMP, "--budget", "small", "--robustness", "1",
+                              "--workers", "1", "--run", str(tmp_path / "run"), "--json"])
+    robustness = json.loads(out)["robustness"]
+    assert code == 0 and robustness["samples_per_radius"] == 1
+    for figure in (robustness, robustness["physics"]):
+        low, high = figure["rho_g_interval"]
+        assert 0 <= low <= figure["rho_g"] <= high <= 1
+    report = (tmp_path / "run" / "report.md").read_text()
+    assert "placement errors" in report and "placement plus physical errors" in report
+
+
+@pytest.mark.parametrize("argv, flag", [
+    (["--robustness", "-1"], "--robustness"), (["--physics", "mass=1"], "--physics")])
+def test_optimize_refuses_bad_robustness_flags_before_simulating(tmp_path, argv, flag):
+    code, out, err = _evaluate(["optimize", RAMP, "--budget", "small", "--run",
+                                str(tmp_path / "run"), *argv])
+    assert code == 2 and not out and len(err.strip().splitlines()) == 1 and flag in err
+    assert not (tmp_path / "run" / "simulations.jsonl").exists()

@@ -16,6 +16,7 @@ from rgmcad.cli.common import (
     parts_dir_arg,
     say,
 )
+from rgmcad.cli.physics import add_physics_arg, physics_arg
 
 __all__ = ["configure", "run"]
 
@@ -52,9 +53,7 @@ def configure(p: argparse.ArgumentParser) -> None:
                    "paper's Table 1 settings)")
     p.add_argument("--workers", type=int, default=None, help="simulation processes, 1 to 4 per "
                    "CPU (default: every CPU); results do not depend on it")
-    p.add_argument("--physics", default="default", metavar="RANGES", help="physical errors of "
-                   "the second rho_g column: 'default' (friction +-20 %%, mass +-10 %%, "
-                   "restitution +-20 %%), KEY=RANGE,... or 'off'")
+    add_physics_arg(p)
     p.add_argument("--json", action="store_true", help="print the table as one JSON object")
     add_scheduler_args(p)
 
@@ -78,10 +77,9 @@ def run(args) -> int:
     from rgmcad.runs.benchmark import DEFAULT_METHODS, TABLE_MD, run_benchmark
     from rgmcad.runs.checks import check_workers
     from rgmcad.scene.loader import load_scenario
-    from rgmcad.scene.perturbation import parse_physics_ranges
 
     check_workers(args.workers)
-    physics = parse_physics_ranges(args.physics)
+    physics = physics_arg(args)
     parts_dir = parts_dir_arg(args)
     scenario = load_scenario(args.scenario, parts_dir=parts_dir)  # refused before any folder
     out = args.out if args.out is not None else str(Path("benchmarks") / scenario.name)

@@ -14,6 +14,7 @@ from rgmcad.cli.common import (
     parts_dir_arg,
     say,
 )
+from rgmcad.cli.physics import add_physics_arg, physics_arg
 
 __all__ = ["configure", "run"]
 
@@ -29,10 +30,7 @@ def configure(p: argparse.ArgumentParser) -> None:
     p.add_argument("--workers", type=int, default=None, help="simulation processes, 1 to 4 per "
                    "CPU (default: every CPU); results do not depend on it")
     add_scheduler_args(p)
-    p.add_argument("--physics", default="default", metavar="RANGES", help="physical errors "
-                   "added to placement errors for the second rho_g: 'default' (friction "
-                   "+-20 %%, mass +-10 %%, restitution +-20 %%), KEY=RANGE,... (e.g. "
-                   "friction=0.3,mass=0.05) or 'off' (placement only; half the simulations)")
+    add_physics_arg(p)
     p.add_argument("--out", metavar="FILE.png", help="the plot (default: next to a layout file, "
                    "or robustness-SCENARIO-LAYOUT.png here)")
     p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
@@ -68,12 +66,11 @@ def run(args) -> int:
     from rgmcad.cli.paths import output_file
     from rgmcad.runs.checks import MAX_SAMPLES, MAX_SEED, check_range, check_workers, plot_suffixes
     from rgmcad.runs.workflow import evaluate_layout
-    from rgmcad.scene.perturbation import parse_physics_ranges
 
     check_range(args.samples, 1, MAX_SAMPLES, "--samples", "a number of layouts per radius")
     check_range(args.seed, 0, MAX_SEED, "--seed", "a seed")
     check_workers(args.workers)
-    physics = parse_physics_ranges(args.physics)
+    physics = physics_arg(args)
     if args.out is not None:  # and again, trying, by the workflow, with its default
         output_file(args.out, "--out", plot_suffixes())
     note_first_build(args)

@@ -49,12 +49,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from rgmcad.runs.problem import SimRecord
+from rgmcad.runs.problem import SimRecord, simulate_layout_task
 from rgmcad.scene.perturbation import PhysicsDraw, PhysicsRanges
 from rgmcad.sim.run import Outcome
 
 __all__ = ["ETA", "EPS_GRID", "RobustnessCurve", "ball_samples", "wilson_interval",
-           "local_robustness", "plot_curves"]
+           "local_robustness", "robustness_on", "figures", "plot_curves"]
 
 ETA = 1.0 / 300.0
 """Offset added to every radius (the authors' ``1 / (10 N_STEPS)``)."""
@@ -233,6 +233,41 @@ def local_robustness(
         physical = _curve(x, eps, sizes, perturbed, n_tested, z, eta)
     return dataclasses.replace(_curve(x, eps, sizes, records, n_tested, z, eta),
                                physics=physical)
+
+
+def robustness_on(executor, x, validity, samples: int, seed, physics=None,
+                  progress=None) -> RobustnessCurve:
+    """:func:`local_robustness` of ``x`` with the simulations spread over ``executor`` (its
+    context a :class:`~rgmcad.runs.problem.ScenarioContext`); ``progress``: a
+    :class:`~rgmcad.runs.workflow.RunProgress` told of each stage and simulation."""
+    def simulate(X, draws=None):
+        if progress is not None:
+            progress.stage("simulation" if draws is None else "simulation + physics", len(X))
+        draws = [None] * len(X) if draws is None else draws
+        out = []
+        # local_robustness simulates only layouts that validity() passed: not tested again
+        items = [(v, True, d) for v, d in zip(X, draws, strict=True)]
+        for r in executor.map_context(simulate_layout_task, items):
+            out.append(r)
+            if progress is not None:
+                progress.simulated(r)
+        return out
+
+    return local_robustness(x, validity, simulate, samples, seed, physics=physics)
+
+
+def figures(curve: RobustnessCurve, physics: PhysicsRanges | None = None) -> dict:
+    """A curve as JSON: rho_g, its interval, the curve ``[[eps, rho_l, low, high], ...]``,
+    counts and simulations, and the same under ``physics`` (None when not estimated)."""
+    out = {"rho_g": curve.rho_g, "rho_g_interval": [curve.rho_g_low, curve.rho_g_high],
+           "curve": curve.curve(), "counts": [int(c) for c in curve.counts],
+           "simulations": curve.simulations, "physics": None}
+    p = curve.physics
+    if p is not None:
+        out["physics"] = {"ranges": None if physics is None else physics.to_json(),
+                          "rho_g": p.rho_g, "rho_g_interval": [p.rho_g_low, p.rho_g_high],
+                          "curve": p.curve(), "simulations": p.simulations}
+    return out
 
 
 def _curve(x, eps, sizes, records, n_tested, z, eta) -> RobustnessCurve:

@@ -39,7 +39,6 @@ from rgmcad.runs.problem import (
     ScenarioProblem,
     SimRecord,
     scenario_digest,
-    simulate_layout_task,
     validity_task,
 )
 from rgmcad.runs.report import (
@@ -121,7 +120,8 @@ def optimize_scenario(
     build_dir: str | Path = DEFAULT_BUILD_DIR, progress: RunProgress | None = None,
     recorded: Callable[..., RecordedProblem] = RecordedProblem,
     parts_dir: str | Path | None = None, scheduler: str | None = None,
-    batch: int | None = None,
+    batch: int | None = None, robustness_samples: int = 0,
+    physics: PhysicsRanges | None = DEFAULT_PHYSICS,
 ) -> OptimizationRun:
     """Optimise a scenario's layout in a run directory, or continue an interrupted run there.
 
@@ -147,6 +147,10 @@ def optimize_scenario(
         depend on it.
     batch : the exploration's batch size (``LearningSettings.exploration_batch``, 1..10 000)
         instead of the settings'; part of the run's identity and default directory.
+    robustness_samples : when > 0, the chosen layout's rho_g is estimated with that many
+        layouts per radius (:func:`evaluate_layout`'s protocol, seed ``seed``), under placement
+        errors and, with ``physics``, under placement plus physical errors: the summary's
+        ``robustness``. Not journaled: an interrupted run redoes it.
     """
     start = time.perf_counter()
     from rgmcad.learning.settings import budget as budget_settings
@@ -184,10 +188,20 @@ def optimize_scenario(
                                             on_progress=lambda p: progress.stage(p.stage))
             progress.stage("verification")
             chosen = _verify(learner_problem, result)
+            robustness = None
+            if robustness_samples:
+                from rgmcad.runs.robustness import figures, robustness_on
+
+                progress.stage("robustness")
+                curve = robustness_on(executor, np.asarray(chosen["x"], dtype=float),
+                                      problem.validity, robustness_samples, seed, physics,
+                                      progress)
+                robustness = {"samples_per_radius": robustness_samples,
+                              **figures(curve, physics)}
         finally:
             executor.close()
         summary = _write_outputs(scenario, store, learner_problem, result, chosen,
-                                 time.perf_counter() - start, seed, budget)
+                                 time.perf_counter() - start, seed, budget, robustness)
     return OptimizationRun(run_dir, summary, False, time.perf_counter() - start)
 
 
@@ -256,7 +270,8 @@ def _write_json(path: Path, data) -> Path:
     return write_json_atomic(path, data)
 
 
-def _write_outputs(scenario, store, recorded, result, chosen, wall_time, seed, budget) -> dict:
+def _write_outputs(scenario, store, recorded, result, chosen, wall_time, seed, budget,
+                   robustness=None) -> dict:
     from rgmcad.scene.design_space import bounds
     from rgmcad.scene.layout_files import layout_document
 
@@ -309,6 +324,7 @@ def _write_outputs(scenario, store, recorded, result, chosen, wall_time, seed, b
                                  "verification": chosen["n_simulations"]},
         "verification": chosen["candidates"],
         "verify_noise": result.settings.verify_noise,
+        "robustness": robustness,
         "successes": int(n_success),
         "discarded": result.n_discarded,
         "simulated_now": recorded.n_simulated,
@@ -375,7 +391,7 @@ def evaluate_layout(
     dict
         What ``rgmcad evaluate --json`` prints.
     """
-    from rgmcad.runs.robustness import local_robustness, plot_curves
+    from rgmcad.runs.robustness import figures, plot_curves, robustness_on
     from rgmcad.scene.design_space import vector_from_values
     from rgmcad.scene.layout_files import resolve_layout
     from rgmcad.scene.loader import load_scenario
@@ -403,34 +419,14 @@ def evaluate_layout(
         progress.tested(len(X))
         return ok
 
-    def simulate(X, draws=None):
-        progress.stage("simulation" if draws is None else "simulation + physics", len(X))
-        draws = [None] * len(X) if draws is None else draws
-        out = []
-        # local_robustness simulates only layouts that validity() passed: not tested again
-        items = [(x, True, d) for x, d in zip(X, draws, strict=True)]
-        for r in executor.map_context(simulate_layout_task, items):
-            out.append(r)
-            progress.simulated(r)
-        return out
-
     try:
-        curve = local_robustness(x, validity, simulate, samples, seed, physics=physics)
+        curve = robustness_on(executor, x, validity, samples, seed, physics, progress)
     finally:
         executor.close()
     wall = time.perf_counter() - start
     plot_curves({name: curve}, plot, title=f"{scenario.name}: local robustness of {name}")
-    out = {
-        "scenario": scenario.name, "layout": name, "vector": [float(v) for v in x],
-        "rho_g": curve.rho_g, "rho_g_interval": [curve.rho_g_low, curve.rho_g_high],
-        "curve": curve.curve(), "counts": [int(c) for c in curve.counts],
-        "simulations": curve.simulations, "validity_tests": curve.validity_tests,
-        "samples_per_radius": samples, "eta": curve.eta, "seed": seed,
-        "wall_time": wall, "plot": str(plot), "physics": None,
-    }
-    if curve.physics is not None:
-        p = curve.physics
-        out["physics"] = {"ranges": physics.to_json(), "rho_g": p.rho_g,
-                          "rho_g_interval": [p.rho_g_low, p.rho_g_high], "curve": p.curve(),
-                          "simulations": p.simulations}
-    return out
+    return {"scenario": scenario.name, "layout": name, "vector": [float(v) for v in x],
+            **figures(curve, physics), "validity_tests": curve.validity_tests,
+            "samples_per_radius": samples, "eta": curve.eta, "seed": seed,
+            "wall_time": wall, "plot": str(plot)}
+
