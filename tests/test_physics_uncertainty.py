@@ -176,3 +176,16 @@ def test_optimize_refuses_bad_robustness_flags_before_simulating(tmp_path, argv,
                                 str(tmp_path / "run"), *argv])
     assert code == 2 and not out and len(err.strip().splitlines()) == 1 and flag in err
     assert not (tmp_path / "run" / "simulations.jsonl").exists()
+
+
+def test_learning_with_physical_noise_labels_edge_layouts_as_a_real_table_would(tmp_path, ramp):
+    run = tmp_path / "noisy"
+    argv = ["optimize", RAMP, "--budget", "small", "--robustness", "0", "--workers", "1",
+            "--run", str(run)]
+    code, out, _ = _evaluate([*argv, "--physics-noise", "--physics", "friction=0.3"])
+    assert code in (0, 1) and "physics_noise" in json.loads((run / "settings.json").read_text())
+    rows = [json.loads(line) for line in (run / "simulations.jsonl").read_text().splitlines()]
+    flipped = [r for r in rows if ramp.simulate_one(r["vector"]).outcome.value != r["outcome"]]
+    assert flipped and len(flipped) < len(rows) / 2  # noisy near the edge, not everywhere
+    code, _, err = _evaluate(argv)  # the same directory without noise: another run
+    assert code == 2 and len(err.strip().splitlines()) == 1

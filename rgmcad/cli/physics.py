@@ -22,6 +22,9 @@ def add_robustness_arg(p: argparse.ArgumentParser) -> None:
                    "from N layouts per radius, under placement errors and under placement plus "
                    "--physics errors; 0 to 1000 (default 5; 0 with --budget small: skipped)")
     add_physics_arg(p)
+    p.add_argument("--physics-noise", action="store_true", help="learn with noisy labels: "
+                   "every learning simulation with its own draw of the --physics errors "
+                   "(default: the scenario's physics; directory runs/SCENARIO-sSEED-physics)")
 
 
 def physics_arg(args):
@@ -41,8 +44,14 @@ def robustness_arg(args) -> int:
 
 
 def robustness_options(args) -> dict:
-    """``optimize_scenario``'s ``robustness_samples`` and ``physics`` from the flags."""
-    return {"robustness_samples": robustness_arg(args), "physics": physics_arg(args)}
+    """``optimize_scenario``'s ``robustness_samples``, ``physics`` and ``physics_noise``."""
+    ranges = physics_arg(args)
+    if args.physics_noise and ranges is None:
+        from rgmcad.errors import UsageError
+
+        raise UsageError("--physics-noise", "", "needs physical errors; --physics is 'off'")
+    return {"robustness_samples": robustness_arg(args), "physics": ranges,
+            "physics_noise": ranges if args.physics_noise else None}
 
 
 def robustness_lines(summary: dict) -> list[str]:

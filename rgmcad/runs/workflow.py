@@ -121,7 +121,7 @@ def optimize_scenario(
     recorded: Callable[..., RecordedProblem] = RecordedProblem,
     parts_dir: str | Path | None = None, scheduler: str | None = None,
     batch: int | None = None, robustness_samples: int = 0,
-    physics: PhysicsRanges | None = DEFAULT_PHYSICS,
+    physics: PhysicsRanges | None = DEFAULT_PHYSICS, physics_noise: PhysicsRanges | None = None,
 ) -> OptimizationRun:
     """Optimise a scenario's layout in a run directory, or continue an interrupted run there.
 
@@ -151,6 +151,9 @@ def optimize_scenario(
         layouts per radius (:func:`evaluate_layout`'s protocol, seed ``seed``), under placement
         errors and, with ``physics``, under placement plus physical errors: the summary's
         ``robustness``. Not journaled: an interrupted run redoes it.
+    physics_noise : every learning (and verification) simulation with its own physical
+        draw of these ranges (noisy labels: the model learns the success probability under
+        physical errors); part of the run's identity, ``-physics`` ends the default directory.
     """
     start = time.perf_counter()
     from rgmcad.learning.settings import budget as budget_settings
@@ -161,13 +164,18 @@ def optimize_scenario(
     check_workers(workers, "workers")
     scenario = load_scenario(scenario_path, parts_dir=parts_dir)
     settings = budget_settings(budget) if settings is None else settings
+    given = run_dir is not None
     if batch is not None:
         check_range(batch, 1, 10_000, "batch", "a number of simulations per batch")
         settings = settings.replace(exploration_batch=int(batch))
     parts = None if parts_dir is None else {
         name: family_digest(family) for name, family in scenario.families.items()}
     identity = run_identity(scenario.name, scenario_digest(scenario_path), seed, settings, parts)
+    if physics_noise is not None:  # noisy labels: another run
+        identity["physics_noise"] = physics_noise.to_json()
+    tag = "" if physics_noise is None else "-physics"
     run_dir = Path(run_dir) if run_dir else default_run_dir(scenario.name, budget, seed, batch)
+    run_dir = run_dir.with_name(run_dir.name + tag) if tag and not given else run_dir
     with RunStore(run_dir, identity, dimension=len(scenario.free),
                   events=list(scenario.events)) as store:
         summary = store.read_result()  # None unless finished, with its model intact
@@ -181,6 +189,8 @@ def optimize_scenario(
                                  payload=problem.payload)
         try:
             learner_problem = recorded(problem, store, executor, progress.simulated)
+            if physics_noise is not None:
+                learner_problem.physics_noise = (physics_noise, seed)
             # The pool is idle while the models train: their grid searches, calibration folds
             # and mutual information estimates run there (never changing the result).
             with jobs_on(executor):

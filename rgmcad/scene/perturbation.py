@@ -22,6 +22,7 @@ Zero-width ranges return the scene itself: the simulation is exactly the unpertu
 from __future__ import annotations
 
 import dataclasses
+import hashlib
 import zlib
 from dataclasses import dataclass
 
@@ -30,7 +31,8 @@ import numpy as np
 from rgmcad.errors import UsageError
 from rgmcad.scene.bodies import Scene, SceneBody
 
-__all__ = ["PhysicsRanges", "PhysicsDraw", "DEFAULT_PHYSICS", "parse_physics_ranges"]
+__all__ = ["PhysicsRanges", "PhysicsDraw", "DEFAULT_PHYSICS", "parse_physics_ranges",
+           "layout_draw"]
 
 _STEP = 1e-3
 _PHYSICS_STREAM = 0x5048_5953  # keeps physics draws apart from any placement stream
@@ -140,3 +142,11 @@ def _perturbed(body: SceneBody, factors: tuple[float, float, float]) -> SceneBod
         spinning_friction=p.spinning_friction * f,
         restitution=min(max(p.restitution * e, 0.0), 1.0))
     return dataclasses.replace(body, physical=physical)
+
+
+def layout_draw(ranges: PhysicsRanges, seed: int, x) -> PhysicsDraw:
+    """The draw of the layout vector ``x`` (d,) (learning with physical noise): its index is
+    a hash of ``x``'s float64 bytes, so every new layout gets its own draw and a layout
+    simulated again (replayed from a run's journal, or in another process) the same one."""
+    digest = hashlib.sha256(np.ascontiguousarray(x, dtype=np.float64).tobytes()).digest()
+    return PhysicsDraw(ranges, seed, int.from_bytes(digest[:8], "little"))
