@@ -97,6 +97,10 @@ def test_ours_sets_the_budget_and_every_baseline_is_paired_with_it(tmp_path):
         pair = row["paired_vs_ours"]
         diffs = [a - b for a, b in zip(row["rho_g"], ours["rho_g"], strict=True)]
         assert pair["mean_difference"] == pytest.approx(sum(diffs) / 2)
+        phys = row["physics_paired_vs_ours"]  # the second column: placement + physics
+        diffs = [a - b for a, b in zip(row["physics_rho_g"], ours["physics_rho_g"], strict=True)]
+        assert phys["mean_difference"] == pytest.approx(sum(diffs) / 2)
+    assert "rho_g placement + physics" in (tmp_path / "benchmark.md").read_text()
     again = run_benchmark(SIMPLE, tmp_path, methods=("ours", "full", "b1", "b2"), trials=2,
                           samples=1, ours_budget="small", ours_settings=TINY, workers=1)
     assert _without_times(again) == _without_times(table)

@@ -27,10 +27,10 @@ def load_api() -> SimpleNamespace:
 
     shared = {}
     if layout == "current":  # one engine without a renderer and one cache, as in a worker
+        import inspect
+
         from rgmcad.sim.cache import PartCache
         from rgmcad.sim.engine import Engine
-
-        import inspect
 
         quiet = "renderer" in inspect.signature(Engine).parameters  # absent before issue 15
         engine, cache = (Engine(renderer=False) if quiet else Engine()), PartCache()

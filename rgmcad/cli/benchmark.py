@@ -16,6 +16,7 @@ from rgmcad.cli.common import (
     parts_dir_arg,
     say,
 )
+from rgmcad.cli.physics import add_physics_arg, physics_arg
 
 __all__ = ["configure", "run"]
 
@@ -52,6 +53,7 @@ def configure(p: argparse.ArgumentParser) -> None:
                    "paper's Table 1 settings)")
     p.add_argument("--workers", type=int, default=None, help="simulation processes, 1 to 4 per "
                    "CPU (default: every CPU); results do not depend on it")
+    add_physics_arg(p)
     p.add_argument("--json", action="store_true", help="print the table as one JSON object")
     add_scheduler_args(p)
 
@@ -77,6 +79,7 @@ def run(args) -> int:
     from rgmcad.scene.loader import load_scenario
 
     check_workers(args.workers)
+    physics = physics_arg(args)
     parts_dir = parts_dir_arg(args)
     scenario = load_scenario(args.scenario, parts_dir=parts_dir)  # refused before any folder
     out = args.out if args.out is not None else str(Path("benchmarks") / scenario.name)
@@ -85,7 +88,7 @@ def run(args) -> int:
                           trials=args.trials, seed=args.seed, budget_sims=args.budget_sims,
                           samples=args.samples, ours_budget=args.ours_budget,
                           workers=args.workers, build_dir=args.build_dir, progress=_Stages(),
-                          scheduler=args.scheduler, parts_dir=parts_dir)
+                          scheduler=args.scheduler, parts_dir=parts_dir, physics=physics)
     if args.json:
         say(json.dumps(table))
         return 0

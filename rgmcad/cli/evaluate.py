@@ -13,6 +13,7 @@ from rgmcad.cli.common import (
     parts_dir_arg,
     say,
 )
+from rgmcad.cli.physics import add_physics_arg, physics_arg
 from rgmcad.cli.progress import SimulationBar
 
 __all__ = ["configure", "run"]
@@ -29,6 +30,7 @@ def configure(p: argparse.ArgumentParser) -> None:
     p.add_argument("--workers", type=int, default=None, help="simulation processes, 1 to 4 per "
                    "CPU (default: every CPU); results do not depend on it")
     add_scheduler_args(p)
+    add_physics_arg(p)
     p.add_argument("--out", metavar="FILE.png", help="the plot (default: next to a layout file, "
                    "or robustness-SCENARIO-LAYOUT.png here)")
     p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
@@ -42,6 +44,7 @@ def run(args) -> int:
     check_range(args.samples, 1, MAX_SAMPLES, "--samples", "a number of layouts per radius")
     check_range(args.seed, 0, MAX_SEED, "--seed", "a seed")
     check_workers(args.workers)
+    physics = physics_arg(args)
     if args.out is not None:  # and again, trying, by the workflow, with its default
         output_file(args.out, "--out", plot_suffixes())
     note_first_build(args)
@@ -50,7 +53,8 @@ def run(args) -> int:
         result = evaluate_layout(args.scenario, args.layout, samples=args.samples,
                                  seed=args.seed, workers=args.workers,
                                  build_dir=args.build_dir, plot=args.out, progress=bar,
-                                 parts_dir=parts_dir_arg(args), scheduler=args.scheduler)
+                                 parts_dir=parts_dir_arg(args), scheduler=args.scheduler,
+                                 physics=physics)
     finally:
         bar.close()
     if args.json:
@@ -58,10 +62,18 @@ def run(args) -> int:
         return 0
     low, high = result["rho_g_interval"]
     say(f"{result['scenario']}, layout {result['layout']}: rho_g = {result['rho_g']:.3f} "
-        f"[{low:.3f}, {high:.3f}] from {result['simulations']} simulations "
-        f"in {result['wall_time']:.0f} s")
-    say("eps     rho_l   95 % interval")
-    for e, r, lo, hi in result["curve"][::3]:
-        say(f"{e:5.3f}   {r:5.3f}   [{lo:.3f}, {hi:.3f}]")
+        f"[{low:.3f}, {high:.3f}] under placement errors, from {result['simulations']} "
+        f"simulations in {result['wall_time']:.0f} s")
+    phys = result["physics"]
+    if phys is not None:
+        low, high = phys["rho_g_interval"]
+        say(f"  rho_g = {phys['rho_g']:.3f} [{low:.3f}, {high:.3f}] under placement plus "
+            f"physical errors ({physics.describe()})")
+    say("eps     rho_l   95 % interval" + ("      + physics" if phys else ""))
+    rows = zip(result["curve"], phys["curve"] if phys else [None] * len(result["curve"]),
+               strict=True)
+    for (e, r, lo, hi), other in list(rows)[::3]:
+        more = "" if other is None else f"     {other[1]:5.3f}   [{other[2]:.3f}, {other[3]:.3f}]"
+        say(f"{e:5.3f}   {r:5.3f}   [{lo:.3f}, {hi:.3f}]{more}")
     say(f"plot: {result['plot']}")
     return 0

@@ -9,6 +9,7 @@ import json
 import sys
 from pathlib import Path
 
+from rgmcad.cli import physics
 from rgmcad.cli.common import (
     add_scenario_arg,
     add_scheduler_args,
@@ -38,6 +39,7 @@ def configure(p: argparse.ArgumentParser) -> None:
     p.add_argument("--batch", type=int, metavar="N", help="simulations per exploration batch, "
                    "1 to 10000 (default 10); more keeps more workers busy")
     add_scheduler_args(p)
+    physics.add_robustness_arg(p)
     p.add_argument("--json", action="store_true", help="print one JSON summary on stdout")
 
 
@@ -58,7 +60,7 @@ def run(args) -> int:
                                  run_dir=args.run_dir, workers=args.workers,
                                  build_dir=args.build_dir, progress=bar,
                                  parts_dir=parts_dir_arg(args), scheduler=args.scheduler,
-                                 batch=args.batch)
+                                 batch=args.batch, **physics.robustness_options(args))
     finally:
         bar.close()
     write_run_report(done.run_dir, args.scenario, build_dir=args.build_dir,
@@ -87,6 +89,8 @@ def show(summary: dict, as_json: bool, wall_time: float | None = None) -> None:
     say(f"predicted P(success) {summary['probability']:.3f}, weakest link {weakest} "
         f"({summary.get('weakest_probability', summary['event_probabilities'].get(weakest, 1.0)):.3f}"
         f"); {summary['source']}")
+    for line in physics.robustness_lines(summary):
+        say(line)
     say(f"{summary['simulations']} simulations ({summary['successes']} successes, "
         f"{summary['replayed']} replayed) in {summary['wall_time']:.0f} s")
     say("placement tolerances (down / up):")

@@ -8,7 +8,11 @@ as the authors counted). Each returned layout is evaluated by one protocol,
 :func:`~rgmcad.runs.robustness.local_robustness` with ``samples`` valid layouts per radius,
 and with **common random numbers**: at trial ``i`` every method's layout is perturbed with
 the same generator (seeded by ``seed + i``), so the draws differ only where the ball around
-one layout leaves the cube or holds invalid layouts and another's does not.
+one layout leaves the cube or holds invalid layouts and another's does not. With physical
+errors (``physics``, on by default), every evaluated layout is simulated a second time with a
+physical draw (friction, masses, restitution): a second rho_g per trial, its own paired test,
+and common random numbers for those draws too (draw ``k * n + j`` for the ``j``-th layout of
+radius ``k``, under the trial's evaluation seed, whatever the method).
 
 Everything is resumable: each method's trial and each evaluation is a run directory
 (:class:`~rgmcad.runs.store.RunStore`: every simulation journaled, replayed on the next
@@ -18,7 +22,8 @@ their seed, so a benchmark killed at any point and run again gives the same tabl
     out/ours/t{i}/              an ``rgmcad optimize`` run directory (out/full/t{i}: the
                                 same with one global model, ``factorized=False``: Fig. 16)
     out/{method}-B{B}/t{i}/     a baseline's simulations and trial.json
-    out/eval/{method}[-B{B}]/t{i}/   the evaluation of that trial's layout
+    out/eval/{method}[-B{B}]/t{i}/   the evaluation of that trial's layout (the physical
+                                draws are not journaled: an evaluation killed there redoes them)
     out/benchmark.md, benchmark.json, robustness.png
 
 Times: ``time_s`` is the simulations' own seconds (from the journal, so a resumed trial
@@ -38,8 +43,9 @@ from rgmcad.files import write_atomic, write_json_atomic
 from rgmcad.parts.family import family_digest
 from rgmcad.runs.checks import MAX_SAMPLES, MAX_SEED, check_range, check_workers
 from rgmcad.runs.executor import make_executor, scheduler_from_env
-from rgmcad.runs.problem import ScenarioProblem, scenario_digest
+from rgmcad.runs.problem import ScenarioProblem, scenario_digest, simulate_layout_task
 from rgmcad.runs.store import RecordedProblem, RunStore
+from rgmcad.scene.perturbation import DEFAULT_PHYSICS, PhysicsRanges
 
 __all__ = ["METHODS", "DEFAULT_METHODS", "LEARNERS", "LABELS", "TRIAL", "TABLE_MD",
            "TABLE_JSON", "PLOT", "run_benchmark", "budget_of_ours"]
@@ -152,22 +158,37 @@ def _baseline(method: str, identity: dict, run_dir: Path, problem, executor, bud
 
 
 def _evaluate(identity: dict, run_dir: Path, problem, executor, x, samples: int, seed: int,
-              progress) -> dict:
+              progress, physics: PhysicsRanges | None = None) -> dict:
     from rgmcad.runs.robustness import local_robustness
 
     done = _read(run_dir / TRIAL)
-    if done is not None:
+    wanted = None if physics is None else physics.to_json()
+    if done is not None and (wanted is None or (done.get("physics") or {}).get("ranges")
+                             == wanted):
         return done
     with RunStore(run_dir, identity, dimension=problem.dimension,
                   events=list(problem.scenario.events)) as store:
         recorded = RecordedProblem(problem, store, executor, progress.simulated)
-        curve = local_robustness(np.asarray(x, dtype=float), recorded.validity,
-                                 recorded.simulate_records, samples,
-                                 np.random.default_rng([seed, _EVAL_STREAM]))
+
+        def simulate(X, draws=None):  # the store is keyed by layout: physics goes around it
+            if draws is None:
+                return recorded.simulate_records(X)
+            items = [(v, True, d) for v, d in zip(X, draws, strict=True)]
+            return list(executor.map_context(simulate_layout_task, items))
+
+        curve = local_robustness(np.asarray(x, dtype=float), recorded.validity, simulate,
+                                 samples, np.random.default_rng([seed, _EVAL_STREAM]),
+                                 physics=physics)
         out = {"vector": [float(v) for v in x], "seed": seed, "samples": samples,
                "rho_g": curve.rho_g, "rho_g_interval": [curve.rho_g_low, curve.rho_g_high],
                "eps": curve.eps.tolist(), "rho": curve.rho.tolist(),
-               "counts": curve.counts.tolist(), "simulations": curve.simulations}
+               "counts": curve.counts.tolist(), "simulations": curve.simulations,
+               "physics": None}
+        if curve.physics is not None:
+            p = curve.physics
+            out["physics"] = {"ranges": wanted, "rho_g": p.rho_g,
+                              "rho_g_interval": [p.rho_g_low, p.rho_g_high],
+                              "rho": p.rho.tolist(), "simulations": p.simulations}
         write_json_atomic(run_dir / TRIAL, out)
     return out
 
@@ -176,11 +197,13 @@ def run_benchmark(scenario_path, out_dir, *, methods=DEFAULT_METHODS, trials: in
                   seed: int = 0, budget_sims: int | None = None, samples: int = 50,
                   ours_budget: str = "default", ours_settings=None,
                   workers: int | None = None, build_dir=None, progress=None,
-                  scheduler: str | None = None, parts_dir=None) -> dict:
+                  scheduler: str | None = None, parts_dir=None,
+                  physics: PhysicsRanges | None = DEFAULT_PHYSICS) -> dict:
     """Run (or continue) a benchmark and write its table and figure; returns the table
     (what ``benchmark.json`` holds). See the module docstring. ``scheduler``: a Dask
     scheduler's address or ``local:N`` (None: ``RGMCAD_SCHEDULER`` if set, else ``workers``
-    processes); ``parts_dir``: the user's part families (``--parts``)."""
+    processes); ``parts_dir``: the user's part families (``--parts``); ``physics``: the
+    physical errors of the second rho_g (None: placement errors only)."""
     from rgmcad.errors import UsageError
     from rgmcad.parts.store import DEFAULT_BUILD_DIR
     from rgmcad.runs.workflow import RunProgress
@@ -241,10 +264,11 @@ def run_benchmark(scenario_path, out_dir, *, methods=DEFAULT_METHODS, trials: in
                             "seed": s, "samples": samples}
                 evaluations.setdefault(m, []).append(_evaluate(
                     identity, out / "eval" / tags[m] / f"t{s}", problem, executor,
-                    trial["vector"], samples, s, progress))
+                    trial["vector"], samples, s, progress, physics))
     finally:
         executor.close()
     table = _table(scenario.name, methods, seeds, budget, samples, found, evaluations)
+    table["physics"] = None if physics is None else physics.to_json()
     table["wall_time"] = time.perf_counter() - start
     write_json_atomic(out / TABLE_JSON, table)
     write_atomic(out / TABLE_MD, table_markdown(table))
@@ -273,18 +297,31 @@ def _table(name, methods, seeds, budget, samples, found, evaluations) -> dict:
                "budget_sims_mean": float(np.mean([t["budget_sims"] for t in found[m]])),
                "time_s_mean": float(np.mean([t["time_s"] for t in found[m]])),
                "vectors": [t["vector"] for t in found[m]]}
-        if "ours" in evaluations and m != "ours" and len(rho_g) > 1:
-            d = np.asarray(rho_g) - np.asarray([e["rho_g"] for e in evaluations["ours"]])
-            dm, dse = _mean_se(d)
-            from scipy.stats import ttest_rel
-
-            p = float(ttest_rel(rho_g, [e["rho_g"] for e in evaluations["ours"]]).pvalue)
-            row["paired_vs_ours"] = {"mean_difference": dm, "se": dse,
-                                     "p_value": None if np.isnan(p) else p}
+        ours = [e["rho_g"] for e in evaluations.get("ours", [])]
+        if ours and m != "ours" and len(rho_g) > 1:
+            row["paired_vs_ours"] = _paired(rho_g, ours)
+        if all(e.get("physics") for e in evaluations[m]):
+            phys = [e["physics"]["rho_g"] for e in evaluations[m]]
+            row["physics_rho_g"] = phys
+            row["physics_rho_g_mean"], row["physics_rho_g_se"] = _mean_se(phys)
+            row["physics_rho_l_mean"] = np.mean([e["physics"]["rho"] for e in evaluations[m]],
+                                                axis=0).tolist()
+            ours = [(e.get("physics") or {}).get("rho_g") for e in evaluations.get("ours", [])]
+            if ours and None not in ours and m != "ours" and len(phys) > 1:
+                row["physics_paired_vs_ours"] = _paired(phys, ours)
         rows.append(row)
     eps = evaluations[methods[0]][0]["eps"]
     return {"scenario": name, "budget_sims": budget, "seeds": seeds,
             "samples_per_radius": samples, "eps": eps, "rows": rows}
+
+
+def _paired(rho_g, ours) -> dict:
+    """Mean difference (this method minus ours) with its s.e. and the paired t-test."""
+    from scipy.stats import ttest_rel
+
+    dm, dse = _mean_se(np.asarray(rho_g) - np.asarray(ours))
+    p = float(ttest_rel(rho_g, ours).pvalue)
+    return {"mean_difference": dm, "se": dse, "p_value": None if np.isnan(p) else p}
 
 
 def table_markdown(table: dict) -> str:
@@ -292,20 +329,33 @@ def table_markdown(table: dict) -> str:
     def num(v, f="{:.3f}"):
         return "n/a" if v is None or (isinstance(v, float) and np.isnan(v)) else f.format(v)
 
+    def diff(pair):
+        return "" if pair is None else (f"{pair['mean_difference']:+.3f} +- {num(pair['se'])} "
+                                        f"(p {num(pair['p_value'], '{:.2g}')})")
+
+    phys = table.get("physics")
     lines = [f"# Benchmark: {table['scenario']}", "",
              f"B = {table['budget_sims']} simulations per method run (validity tests not "
              f"counted); {len(table['seeds'])} trial(s), seeds {table['seeds'][0]}.."
              f"{table['seeds'][-1]}; rho_l from {table['samples_per_radius']} valid layouts "
-             "per radius, 30 radii, common random numbers across methods.", "",
-             "| method | trials | rho_g (mean +- s.e.) | paired diff. vs ours (p) | "
-             "simulations used | time (s, one core) |", "|---|---|---|---|---|---|"]
+             "per radius, 30 radii, common random numbers across methods.", ""]
+    if phys:
+        lines += ["Placement + physics: the same layouts simulated with physical errors "
+                  f"(friction +-{phys['friction']:.0%}, mass +-{phys['mass']:.0%}, "
+                  f"restitution +-{phys['restitution']:.0%}), common draws across methods.", ""]
+    head = "| method | trials | rho_g (mean +- s.e.) | paired diff. vs ours (p) | "
+    rule = "|---|---|---|---|"
+    if phys:
+        head += "rho_g placement + physics | paired diff. vs ours (p) | "
+        rule += "---|---|"
+    lines += [head + "simulations used | time (s, one core) |", rule + "---|---|"]
     for r in table["rows"]:
-        pair = r.get("paired_vs_ours")
-        diff = "" if pair is None else (f"{pair['mean_difference']:+.3f} +- "
-                                        f"{num(pair['se'])} (p {num(pair['p_value'], '{:.2g}')})")
-        lines.append(f"| {r['label']} | {r['trials']} | {r['rho_g_mean']:.3f} +- "
-                     f"{num(r['rho_g_se'])} | {diff} | {r['simulations_mean']:.0f} | "
-                     f"{r['time_s_mean']:.1f} |")
+        cells = f"| {r['label']} | {r['trials']} | {r['rho_g_mean']:.3f} +- " \
+                f"{num(r['rho_g_se'])} | {diff(r.get('paired_vs_ours'))} | "
+        if phys:
+            cells += (f"{num(r.get('physics_rho_g_mean'))} +- {num(r.get('physics_rho_g_se'))}"
+                      f" | {diff(r.get('physics_paired_vs_ours'))} | ")
+        lines.append(cells + f"{r['simulations_mean']:.0f} | {r['time_s_mean']:.1f} |")
     return "\n".join(lines) + "\n"
 
 
@@ -323,6 +373,9 @@ def plot_benchmark(table: dict, path) -> None:
         se = np.nan_to_num(np.asarray(r["rho_l_se"], dtype=float))
         (line,) = ax.plot(eps, mean, label=f"{r['label']} (rho_g {r['rho_g_mean']:.3f})")
         ax.fill_between(eps, mean - se, mean + se, color=line.get_color(), alpha=0.2, lw=0)
+        if r.get("physics_rho_l_mean") is not None:
+            ax.plot(eps, r["physics_rho_l_mean"], ls="--", color=line.get_color(),
+                    label=f"  + physics (rho_g {r['physics_rho_g_mean']:.3f})")
     ax.set_xlabel("eps (radius in the normalised design space)")
     ax.set_ylabel("local robustness rho_l (mean over trials)")
     ax.set_xlim(0, float(eps.max()))

@@ -174,9 +174,12 @@ class ScenarioContext:
         return check_validity(make_scene(self.scenario, self.values(x), self.parts),
                               cache=self.cache)
 
-    def simulate_one(self, x: np.ndarray, known_valid: bool = False) -> SimRecord:
+    def simulate_one(self, x: np.ndarray, known_valid: bool = False,
+                     physics=None) -> SimRecord:
         """Simulate the design vector ``x`` (d,), after the validity test unless the caller
-        already knows the layout is valid (``known_valid``: the result is the same)."""
+        already knows the layout is valid (``known_valid``: the result is the same), with the
+        physical properties of ``physics`` (a :class:`~rgmcad.scene.perturbation.PhysicsDraw`;
+        None: the scenario's)."""
         from rgmcad.sim.run import simulate
 
         if self._engine is None:
@@ -184,7 +187,7 @@ class ScenarioContext:
 
             self._engine = Engine(renderer=False)
         r = simulate(self.scenario, self.values(x), self.parts, check=not known_valid,
-                     engine=self._engine, cache=self.cache)
+                     engine=self._engine, cache=self.cache, physics=physics)
         labels = r.labels()
         events = {e.name: (labels[e.name], e.time) for e in r.events}
         return SimRecord(r.outcome is not Outcome.INVALID, r.outcome, events,
@@ -253,10 +256,13 @@ def simulate_task(context: ScenarioContext, x: np.ndarray) -> SimRecord:
     return context.simulate_one(x)
 
 
-def simulate_layout_task(context: ScenarioContext, item: tuple[np.ndarray, bool]) -> SimRecord:
+def simulate_layout_task(context: ScenarioContext, item: tuple) -> SimRecord:
     """``context.simulate_one(x, known_valid)`` for ``item = (x, known_valid)``: a layout that
-    this run already found valid is not tested again."""
-    x, known_valid = item
+    this run already found valid is not tested again; ``item = (x, known_valid, physics)``
+    simulates it with that physical draw."""
+    x, known_valid, *physics = item
+    if physics and physics[0] is not None:
+        return context.simulate_one(x, known_valid=known_valid, physics=physics[0])
     return context.simulate_one(x, known_valid=True) if known_valid else context.simulate_one(x)
 
 

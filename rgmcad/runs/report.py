@@ -48,7 +48,8 @@ def report_markdown(scenario, s: dict, low, high) -> str:
              "s of CPU)",
              f"- refinement: objective {s['optimization']['objective_start']:.3f} -> "
              f"{s['optimization']['objective']:.3f} ({s['optimization']['evaluations']} "
-             f"evaluations, {s['optimization']['status']})", "",
+             f"evaluations, {s['optimization']['status']})",
+             *_robustness_lines(s.get("robustness")), "",
              "## Per-event probability at the layout", "",
              "| event | P(success given parents) | model | parameters |", "|---|---|---|---|"]
     for e, p in s["event_probabilities"].items():
@@ -78,6 +79,23 @@ def report_markdown(scenario, s: dict, low, high) -> str:
     lines += ["", "## Plots", "", f"![probability slice]({SLICE_PLOT})", "",
               f"![robustness]({ROBUSTNESS_PLOT})", "", f"![exploration]({PROGRESS_PLOT})", ""]
     return "\n".join(lines)
+
+
+def _robustness_lines(r: dict | None) -> list[str]:
+    """The chosen layout's rho_g under placement errors, and with physical errors (physics
+    branch: ``optimize --robustness N``)."""
+    if not r:
+        return []
+    low, high = r["rho_g_interval"]
+    out = [f"- rho_g under placement errors: **{r['rho_g']:.3f}** [{low:.3f}, {high:.3f}] "
+           f"({r['samples_per_radius']} layouts per radius)"]
+    p = r.get("physics")
+    if p:
+        low, high = p["rho_g_interval"]
+        ranges = ", ".join(f"{k} +-{v:.0%}" for k, v in p["ranges"].items())
+        out.append(f"- rho_g under placement plus physical errors ({ranges}): "
+                   f"**{p['rho_g']:.3f}** [{low:.3f}, {high:.3f}]")
+    return out
 
 
 def _pyplot():

@@ -29,20 +29,32 @@ How the numbers compare with the paper's
 * **Invalid x**: like the authors' code, ``rho_l`` is not forced to 0 when ``x`` itself is
   invalid; the neighbours are counted. A ball with no valid layout at all gives 0.
 * The paper averages 10 runs of each method; a single ``evaluate`` scores one layout.
+
+Physical uncertainty
+--------------------
+The paper perturbs positions only. Given ``physics`` (:class:`~rgmcad.scene.perturbation.
+PhysicsRanges`), every chosen layout is simulated a second time with its own draw of
+friction, masses and restitution, and the curve carries a second curve, ``physics``: the
+success rate under placement *and* physical errors, on the very same layouts (a paired
+comparison). Draw ``k * n + j`` goes to the ``j``-th layout of the ``k``-th radius, under a
+seed derived from ``rng``: the same seed gives every evaluated layout, of any method, the same
+physical draws (common random numbers).
 """
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
 
-from rgmcad.runs.problem import SimRecord
+from rgmcad.runs.problem import SimRecord, simulate_layout_task
+from rgmcad.scene.perturbation import PhysicsDraw, PhysicsRanges
 from rgmcad.sim.run import Outcome
 
 __all__ = ["ETA", "EPS_GRID", "RobustnessCurve", "ball_samples", "wilson_interval",
-           "local_robustness", "plot_curves"]
+           "local_robustness", "robustness_on", "figures", "plot_curves"]
 
 ETA = 1.0 / 300.0
 """Offset added to every radius (the authors' ``1 / (10 N_STEPS)``)."""
@@ -76,6 +88,8 @@ class RobustnessCurve:
     validity_tests : int
         Candidates tested for validity.
     eta : float
+    physics : RobustnessCurve or None
+        The same layouts' curve under placement and physical errors, when asked for.
     """
 
     x: np.ndarray
@@ -91,6 +105,7 @@ class RobustnessCurve:
     simulations: int
     validity_tests: int
     eta: float = ETA
+    physics: RobustnessCurve | None = None
 
     def curve(self) -> list[list[float]]:
         """``[[eps, rho_l, low, high], ...]``."""
@@ -149,6 +164,7 @@ def local_robustness(
     candidate_factor: int = 100,
     z: float = 1.959964,
     on_progress: Callable[[str, int], None] | None = None,
+    physics: PhysicsRanges | None = None,
 ) -> RobustnessCurve:
     """Estimate ``rho_l(x, eps)`` on a grid of radii and ``rho_g`` (see the module docstring).
 
@@ -164,7 +180,8 @@ def local_robustness(
     validity : callable
         ``validity(X) -> (m,) bool``.
     simulate : callable
-        ``simulate(X) -> list[SimRecord]``.
+        ``simulate(X) -> list[SimRecord]``; with ``physics``, also called as
+        ``simulate(X, draws)`` with one :class:`~rgmcad.scene.perturbation.PhysicsDraw` per row.
     n : int
         Valid layouts simulated per radius.
     rng : numpy.random.Generator or int, optional
@@ -174,6 +191,8 @@ def local_robustness(
         Added to every radius.
     on_progress : callable, optional
         ``on_progress(stage, count)`` after each validity block and after simulating.
+    physics : PhysicsRanges, optional
+        Also estimate the curve under physical errors (the result's ``physics``).
 
     Returns
     -------
@@ -181,8 +200,8 @@ def local_robustness(
     """
     x = np.asarray(x, dtype=float).reshape(-1)
     eps = np.asarray(eps, dtype=float)
-    seeds = np.random.SeedSequence(int(np.random.default_rng(rng).integers(2**63)))
-    gens = [np.random.default_rng(s) for s in seeds.spawn(len(eps))]
+    root = int(np.random.default_rng(rng).integers(2**63))
+    gens = [np.random.default_rng(s) for s in np.random.SeedSequence(root).spawn(len(eps))]
     chosen: list[np.ndarray] = []
     n_tested = 0
     for k, e in enumerate(eps):
@@ -204,6 +223,54 @@ def local_robustness(
     records = simulate(X) if len(X) else []
     if on_progress is not None:
         on_progress("simulated", len(records))
+    physical = None
+    if physics is not None:
+        draws = [PhysicsDraw(physics, root, k * n + j)
+                 for k, size in enumerate(sizes) for j in range(size)]
+        perturbed = simulate(X, draws) if len(X) else []
+        if on_progress is not None:
+            on_progress("simulated", len(perturbed))
+        physical = _curve(x, eps, sizes, perturbed, n_tested, z, eta)
+    return dataclasses.replace(_curve(x, eps, sizes, records, n_tested, z, eta),
+                               physics=physical)
+
+
+def robustness_on(executor, x, validity, samples: int, seed, physics=None,
+                  progress=None) -> RobustnessCurve:
+    """:func:`local_robustness` of ``x`` with the simulations spread over ``executor`` (its
+    context a :class:`~rgmcad.runs.problem.ScenarioContext`); ``progress``: a
+    :class:`~rgmcad.runs.workflow.RunProgress` told of each stage and simulation."""
+    def simulate(X, draws=None):
+        if progress is not None:
+            progress.stage("simulation" if draws is None else "simulation + physics", len(X))
+        draws = [None] * len(X) if draws is None else draws
+        out = []
+        # local_robustness simulates only layouts that validity() passed: not tested again
+        items = [(v, True, d) for v, d in zip(X, draws, strict=True)]
+        for r in executor.map_context(simulate_layout_task, items):
+            out.append(r)
+            if progress is not None:
+                progress.simulated(r)
+        return out
+
+    return local_robustness(x, validity, simulate, samples, seed, physics=physics)
+
+
+def figures(curve: RobustnessCurve, physics: PhysicsRanges | None = None) -> dict:
+    """A curve as JSON: rho_g, its interval, the curve ``[[eps, rho_l, low, high], ...]``,
+    counts and simulations, and the same under ``physics`` (None when not estimated)."""
+    out = {"rho_g": curve.rho_g, "rho_g_interval": [curve.rho_g_low, curve.rho_g_high],
+           "curve": curve.curve(), "counts": [int(c) for c in curve.counts],
+           "simulations": curve.simulations, "physics": None}
+    p = curve.physics
+    if p is not None:
+        out["physics"] = {"ranges": None if physics is None else physics.to_json(),
+                          "rho_g": p.rho_g, "rho_g_interval": [p.rho_g_low, p.rho_g_high],
+                          "curve": p.curve(), "simulations": p.simulations}
+    return out
+
+
+def _curve(x, eps, sizes, records, n_tested, z, eta) -> RobustnessCurve:
     success = np.array([r.outcome is Outcome.SUCCESS for r in records], dtype=bool)
     bounds = np.cumsum([0, *sizes])
     succ = np.array([success[bounds[k]:bounds[k + 1]].sum() for k in range(len(eps))])
@@ -233,7 +300,7 @@ def _trapezoid_weights(t: np.ndarray) -> np.ndarray:
 
 def plot_curves(curves: dict[str, RobustnessCurve], path, title: str = "") -> None:
     """Local robustness against eps with the confidence band, one line per layout, like the
-    paper's Fig. 15 (matplotlib, Agg)."""
+    paper's Fig. 15 (matplotlib, Agg); a curve's ``physics`` curve dashed in its colour."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -241,8 +308,14 @@ def plot_curves(curves: dict[str, RobustnessCurve], path, title: str = "") -> No
 
     fig, ax = plt.subplots(figsize=(6, 4), dpi=120)
     for name, c in curves.items():
-        (line,) = ax.plot(c.eps, c.rho, label=f"{name} (rho_g = {c.rho_g:.3f})")
+        (line,) = ax.plot(c.eps, c.rho, label=f"{name}, placement (rho_g = {c.rho_g:.3f})"
+                          if c.physics is not None else f"{name} (rho_g = {c.rho_g:.3f})")
         ax.fill_between(c.eps, c.low, c.high, color=line.get_color(), alpha=0.2, lw=0)
+        if c.physics is not None:  # same colour, dashed, its band hatched
+            p = c.physics
+            ax.plot(p.eps, p.rho, ls="--", color=line.get_color(),
+                    label=f"{name}, placement + physics (rho_g = {p.rho_g:.3f})")
+            ax.fill_between(p.eps, p.low, p.high, color=line.get_color(), alpha=0.1, lw=0)
     ax.set_xlabel("eps (radius in the normalised design space)")
     ax.set_ylabel("local robustness rho_l")
     ax.set_xlim(0, float(max(c.eps.max() for c in curves.values())))

@@ -405,8 +405,9 @@ class RecordedProblem:
             if r is None:
                 todo.setdefault(_key(X[i]), i)
         rows = list(todo.values())
-        results = self.executor.map_context(
-            simulate_layout_task, [(X[i], _key(X[i]) in self._valid) for i in rows])
+        results = self.executor.map_context(  # the physical draw: None without noise
+            simulate_layout_task, [(X[i], _key(X[i]) in self._valid, self._draw(X[i]))
+                                   for i in rows])
         self._in_flight += 1
 
         def wait() -> list[SimRecord]:
@@ -431,6 +432,13 @@ class RecordedProblem:
             return records
 
         return wait
+
+    physics_noise = None  # (PhysicsRanges, seed): each new layout with its own physical draw
+
+    def _draw(self, x):
+        from rgmcad.scene.perturbation import layout_draw
+
+        return None if self.physics_noise is None else layout_draw(*self.physics_noise, x)
 
     def submit(self, X: np.ndarray) -> Callable[[], list]:
         """:meth:`submit_records` giving labels."""

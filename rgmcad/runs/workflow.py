@@ -39,7 +39,6 @@ from rgmcad.runs.problem import (
     ScenarioProblem,
     SimRecord,
     scenario_digest,
-    simulate_layout_task,
     validity_task,
 )
 from rgmcad.runs.report import (
@@ -60,6 +59,7 @@ from rgmcad.runs.store import (
     RunStore,
     run_identity,
 )
+from rgmcad.scene.perturbation import DEFAULT_PHYSICS, PhysicsRanges
 from rgmcad.sim.run import Outcome
 
 __all__ = ["LAYOUT_FILE", "START_FILE", "RunProgress", "OptimizationRun", "default_run_dir",
@@ -122,7 +122,8 @@ def optimize_scenario(
     build_dir: str | Path = DEFAULT_BUILD_DIR, progress: RunProgress | None = None,
     recorded: Callable[..., RecordedProblem] = RecordedProblem,
     parts_dir: str | Path | None = None, scheduler: str | None = None,
-    batch: int | None = None,
+    batch: int | None = None, robustness_samples: int = 0,
+    physics: PhysicsRanges | None = DEFAULT_PHYSICS, physics_noise: PhysicsRanges | None = None,
 ) -> OptimizationRun:
     """Optimise a scenario's layout in a run directory, or continue an interrupted run there.
 
@@ -148,6 +149,13 @@ def optimize_scenario(
         depend on it.
     batch : the exploration's batch size (``LearningSettings.exploration_batch``, 1..10 000)
         instead of the settings'; part of the run's identity and default directory.
+    robustness_samples : when > 0, the chosen layout's rho_g is estimated with that many
+        layouts per radius (:func:`evaluate_layout`'s protocol, seed ``seed``), under placement
+        errors and, with ``physics``, under placement plus physical errors: the summary's
+        ``robustness``. Not journaled: an interrupted run redoes it.
+    physics_noise : every learning (and verification) simulation with its own physical
+        draw of these ranges (noisy labels: the model learns the success probability under
+        physical errors); part of the run's identity, ``-physics`` ends the default directory.
     """
     start = time.perf_counter()
     from rgmcad.learning.settings import budget as budget_settings
@@ -158,13 +166,18 @@ def optimize_scenario(
     check_workers(workers, "workers")
     scenario = load_scenario(scenario_path, parts_dir=parts_dir)
     settings = budget_settings(budget) if settings is None else settings
+    given = run_dir is not None
     if batch is not None:
         check_range(batch, 1, 10_000, "batch", "a number of simulations per batch")
         settings = settings.replace(exploration_batch=int(batch))
     parts = None if parts_dir is None else {
         name: family_digest(family) for name, family in scenario.families.items()}
     identity = run_identity(scenario.name, scenario_digest(scenario_path), seed, settings, parts)
+    if physics_noise is not None:  # noisy labels: another run
+        identity["physics_noise"] = physics_noise.to_json()
+    tag = "" if physics_noise is None else "-physics"
     run_dir = Path(run_dir) if run_dir else default_run_dir(scenario.name, budget, seed, batch)
+    run_dir = run_dir.with_name(run_dir.name + tag) if tag and not given else run_dir
     with RunStore(run_dir, identity, dimension=len(scenario.free),
                   events=list(scenario.events)) as store:
         summary = store.read_result()  # None unless finished, with its model intact
@@ -178,6 +191,8 @@ def optimize_scenario(
                                  payload=problem.payload)
         try:
             learner_problem = recorded(problem, store, executor, progress.simulated)
+            if physics_noise is not None:
+                learner_problem.physics_noise = (physics_noise, seed)
             # The pool is idle while the models train: their grid searches, calibration folds
             # and mutual information estimates run there (never changing the result).
             with jobs_on(executor):
@@ -185,10 +200,20 @@ def optimize_scenario(
                                             on_progress=lambda p: progress.stage(p.stage))
             progress.stage("verification")
             chosen = _verify(learner_problem, result)
+            robustness = None
+            if robustness_samples:
+                from rgmcad.runs.robustness import figures, robustness_on
+
+                progress.stage("robustness")
+                curve = robustness_on(executor, np.asarray(chosen["x"], dtype=float),
+                                      problem.validity, robustness_samples, seed, physics,
+                                      progress)
+                robustness = {"samples_per_radius": robustness_samples,
+                              **figures(curve, physics)}
         finally:
             executor.close()
         summary = _write_outputs(scenario, store, learner_problem, result, chosen,
-                                 time.perf_counter() - start, seed, budget)
+                                 time.perf_counter() - start, seed, budget, robustness)
     return OptimizationRun(run_dir, summary, False, time.perf_counter() - start)
 
 
@@ -257,7 +282,8 @@ def _write_json(path: Path, data) -> Path:
     return write_json_atomic(path, data)
 
 
-def _write_outputs(scenario, store, recorded, result, chosen, wall_time, seed, budget) -> dict:
+def _write_outputs(scenario, store, recorded, result, chosen, wall_time, seed, budget,
+                   robustness=None) -> dict:
     from rgmcad.scene.design_space import bounds
     from rgmcad.scene.layout_files import layout_document
 
@@ -313,6 +339,7 @@ def _write_outputs(scenario, store, recorded, result, chosen, wall_time, seed, b
                                  "verification": chosen["n_simulations"]},
         "verification": chosen["candidates"],
         "verify_noise": result.settings.verify_noise,
+        "robustness": robustness,
         "successes": int(n_success),
         "discarded": result.n_discarded,
         "simulated_now": recorded.n_simulated,
@@ -358,9 +385,12 @@ def evaluate_layout(
     workers: int | None = None, build_dir: str | Path = DEFAULT_BUILD_DIR,
     plot: str | Path | None = None, progress: RunProgress | None = None,
     parts_dir: str | Path | None = None, scheduler: str | None = None,
+    physics: PhysicsRanges | None = DEFAULT_PHYSICS,
 ) -> dict:
     """Local robustness of a layout at every radius and its global robustness rho_g
-    (:func:`~rgmcad.runs.robustness.local_robustness`), and their plot.
+    (:func:`~rgmcad.runs.robustness.local_robustness`), and their plot; with ``physics``
+    (default: :data:`~rgmcad.scene.perturbation.DEFAULT_PHYSICS`; None: placement only),
+    also under placement plus physical errors, on the same layouts.
 
     Parameters
     ----------
@@ -378,7 +408,7 @@ def evaluate_layout(
     dict
         What ``rgmcad evaluate --json`` prints.
     """
-    from rgmcad.runs.robustness import local_robustness, plot_curves
+    from rgmcad.runs.robustness import figures, plot_curves, robustness_on
     from rgmcad.scene.design_space import vector_from_values
     from rgmcad.scene.layout_files import resolve_layout
     from rgmcad.scene.loader import load_scenario
@@ -406,26 +436,14 @@ def evaluate_layout(
         progress.tested(len(X))
         return ok
 
-    def simulate(X):
-        progress.stage("simulation", len(X))
-        out = []
-        # local_robustness simulates only layouts that validity() passed: not tested again
-        for r in executor.map_context(simulate_layout_task, [(x, True) for x in X]):
-            out.append(r)
-            progress.simulated(r)
-        return out
-
     try:
-        curve = local_robustness(x, validity, simulate, samples, seed)
+        curve = robustness_on(executor, x, validity, samples, seed, physics, progress)
     finally:
         executor.close()
     wall = time.perf_counter() - start
     plot_curves({name: curve}, plot, title=f"{scenario.name}: local robustness of {name}")
-    return {
-        "scenario": scenario.name, "layout": name, "vector": [float(v) for v in x],
-        "rho_g": curve.rho_g, "rho_g_interval": [curve.rho_g_low, curve.rho_g_high],
-        "curve": curve.curve(), "counts": [int(c) for c in curve.counts],
-        "simulations": curve.simulations, "validity_tests": curve.validity_tests,
-        "samples_per_radius": samples, "eta": curve.eta, "seed": seed,
-        "wall_time": wall, "plot": str(plot),
-    }
+    return {"scenario": scenario.name, "layout": name, "vector": [float(v) for v in x],
+            **figures(curve, physics), "validity_tests": curve.validity_tests,
+            "samples_per_radius": samples, "eta": curve.eta, "seed": seed,
+            "wall_time": wall, "plot": str(plot)}
+

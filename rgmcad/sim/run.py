@@ -21,6 +21,7 @@ import numpy as np
 from rgmcad.parts.store import BuiltPart
 from rgmcad.scene.bodies import make_scene
 from rgmcad.scene.model import Scenario
+from rgmcad.scene.perturbation import PhysicsDraw
 from rgmcad.sim.cache import PartCache
 from rgmcad.sim.causal import CausalGraph, EventState
 from rgmcad.sim.engine import Engine
@@ -88,7 +89,8 @@ def simulate(scenario: Scenario, values, parts: Mapping[str, BuiltPart], *,
              check: bool = True, tolerance: float = TOLERANCE,
              observer: Observer | None = None, observe_every: int = 1,
              engine: Engine | None = None, cache: PartCache | None = None,
-             hooks: Sequence[StepHook] = ()) -> SimulationResult:
+             hooks: Sequence[StepHook] = (),
+             physics: PhysicsDraw | None = None) -> SimulationResult:
     """Simulate the layout with real parameter ``values`` (d,).
 
     Parameters
@@ -102,6 +104,8 @@ def simulate(scenario: Scenario, values, parts: Mapping[str, BuiltPart], *,
         :class:`~rgmcad.sim.world.World`); None: the simulation's own.
     hooks : called as ``hook(world, t)`` before every physics step, after the events
         (recording, constraints solved between steps); none costs nothing.
+    physics : a draw of physical properties (friction, mass, restitution) applied to the
+        scene after the validity test, which does not depend on them; None: the scenario's.
     """
     start = time.perf_counter()
     scene = make_scene(scenario, np.asarray(values, float), parts)
@@ -113,6 +117,8 @@ def simulate(scenario: Scenario, values, parts: Mapping[str, BuiltPart], *,
             elapsed = time.perf_counter() - start
             return SimulationResult(Outcome.INVALID, events, 0.0, elapsed, validity=validity,
                                     validity_time=elapsed)
+    if physics is not None:
+        scene = physics.apply(scene)
     built_at = time.perf_counter()
     settings = scenario.settings
     if observer is not None:

@@ -1,0 +1,65 @@
+"""The flags of physical uncertainty shared by ``evaluate``, ``optimize`` and ``benchmark``:
+``--physics RANGES`` (and ``optimize --robustness N``), read and printed."""
+
+from __future__ import annotations
+
+import argparse
+
+__all__ = ["add_physics_arg", "add_robustness_arg", "physics_arg", "robustness_arg",
+           "robustness_options", "robustness_lines"]
+
+_HELP = ("physical errors of the second rho_g: 'default' (friction +-20 %%, mass +-10 %%, "
+         "restitution +-20 %%), KEY=RANGE,... (e.g. friction=0.3,mass=0.05; unnamed keys keep "
+         "their default) or 'off' (placement errors only)")
+
+
+def add_physics_arg(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--physics", default="default", metavar="RANGES", help=_HELP)
+
+
+def add_robustness_arg(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--robustness", type=int, metavar="N", help="estimate the layout's rho_g "
+                   "from N layouts per radius, under placement errors and under placement plus "
+                   "--physics errors; 0 to 1000 (default 5; 0 with --budget small: skipped)")
+    add_physics_arg(p)
+    p.add_argument("--physics-noise", action="store_true", help="learn with noisy labels: "
+                   "every learning simulation with its own draw of the --physics errors "
+                   "(default: the scenario's physics; directory runs/SCENARIO-sSEED-physics)")
+
+
+def physics_arg(args):
+    """``--physics`` as :class:`~rgmcad.scene.perturbation.PhysicsRanges`, None for 'off'."""
+    from rgmcad.scene.perturbation import parse_physics_ranges
+
+    return parse_physics_ranges(args.physics)
+
+
+def robustness_arg(args) -> int:
+    """``--robustness`` checked, or its default for the budget."""
+    from rgmcad.runs.checks import check_range
+
+    if args.robustness is None:
+        return 0 if args.budget == "small" else 5
+    return check_range(args.robustness, 0, 1000, "--robustness", "a number of layouts per radius")
+
+
+def robustness_options(args) -> dict:
+    """``optimize_scenario``'s ``robustness_samples``, ``physics`` and ``physics_noise``."""
+    ranges = physics_arg(args)
+    if args.physics_noise and ranges is None:
+        from rgmcad.errors import UsageError
+
+        raise UsageError("--physics-noise", "", "needs physical errors; --physics is 'off'")
+    return {"robustness_samples": robustness_arg(args), "physics": ranges,
+            "physics_noise": ranges if args.physics_noise else None}
+
+
+def robustness_lines(summary: dict) -> list[str]:
+    """The run summary's two rho_g figures, one line each (none when not estimated)."""
+    r = summary.get("robustness") or {}
+    out = []
+    for fig, what in ((r, "placement"), (r.get("physics"), "placement + physical")):
+        if fig:
+            low, high = fig["rho_g_interval"]
+            out.append(f"rho_g under {what} errors: {fig['rho_g']:.3f} [{low:.3f}, {high:.3f}]")
+    return out
