@@ -88,6 +88,17 @@ def test_exported_glb_of_a_layout_file_names_every_part(tmp_path, capsys):
     assert np.allclose(glb.bounds, [y_up.min(0), y_up.max(0)], atol=5e-4)
 
 
+def test_a_part_named_like_its_scenario_is_exported(tmp_path, capsys):
+    # TEAPOT's teapot: the assembly is named after the scenario, and names must be unique
+    text = (Path(__file__).resolve().parent.parent / "scenarios" / "simple.toml").read_text()
+    scenario = tmp_path / "ball.toml"
+    scenario.write_text(text.replace('name = "simple"', 'name = "ball"', 1))
+    assert 'name = "ball"' in scenario.read_text()
+    out = tmp_path / "ball.step"
+    assert main(["export", str(scenario), "--layout", "solved", "--out", str(out)]) == 0
+    assert out.stat().st_size > 0 and "ball" in out.read_text(errors="replace")
+
+
 @pytest.mark.parametrize("out", ["x.stl", "x", "missing/x.step"])
 def test_export_refuses_an_unusable_output_before_any_work(out, tmp_path, capsys):
     assert main(["export", "simple", "--out", str(tmp_path / out)]) == 2

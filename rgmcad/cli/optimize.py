@@ -69,7 +69,11 @@ def run(args) -> int:
         sys.stderr.write(f"{done.run_dir}: finished already; showing its result\n")
     layout = done.run_dir / LAYOUT_FILE  # where the run is now, not where it was made
     if not all((done.run_dir / name).exists() for name in RUN_FILES):  # the layout as CAD
-        export_files(args, str(layout), None, [done.run_dir / n for n in RUN_FILES])
+        try:
+            export_files(args, str(layout), None, [done.run_dir / n for n in RUN_FILES])
+        except Exception as exc:  # noqa: BLE001 - the run is saved; only the CAD copy is missing
+            sys.stderr.write(f"warning: {layout}: not exported as STEP/GLB "
+                             f"({type(exc).__name__}: {exc}); try: rgmcad export\n")
     show(done.summary, args.json, done.wall_time if done.finished_before else None)
     if not args.json:
         say(f"next: rgmcad simulate {args.scenario_given} --layout {layout}")

@@ -73,7 +73,8 @@ def export_layout(scenario, scene: Scene, path: Path) -> Path:
     suffix = path.suffix.lower()
     if suffix not in EXPORT_SUFFIXES:
         raise ValueError(f"{path}: expected one of {', '.join(EXPORT_SUFFIXES)}")
-    assembly = cq.Assembly(name=scenario.name)
+    # a name with a space: no part can have it (a part named like the scenario, teapot)
+    assembly = cq.Assembly(name=f"{scenario.name} layout")
     for name, solid in _solids(scenario, scene).items():
         body = scene.bodies[name]
         colour = cq.Color(*(_STATIC if body.static else _MOVING))
