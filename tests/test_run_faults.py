@@ -299,6 +299,8 @@ def no_simulation(monkeypatch):
     (["optimize", SIMPLE, "--workers", "100000"], "--workers"),
     (["optimize", SIMPLE, "--seed", "-1"], "--seed"),
     (["optimize", SIMPLE, "--seed", str(2**32)], "--seed"),
+    (["optimize", SIMPLE, "--batch", "0"], "--batch"),
+    (["optimize", SIMPLE, "--batch", "10001"], "--batch"),
     (["evaluate", SIMPLE, "--layout", "solved", "--workers", "0"], "--workers"),
     (["evaluate", SIMPLE, "--layout", "solved", "--samples", "0"], "--samples"),
     (["evaluate", SIMPLE, "--layout", "solved", "--samples", "1000000000"], "--samples"),

@@ -45,11 +45,13 @@ def configure(p: argparse.ArgumentParser) -> None:
 
 def run(args) -> int:
     from rgmcad.cli.paths import output_dir
-    from rgmcad.runs.checks import MAX_SEED, check_range, check_workers
+    from rgmcad.runs.checks import MAX_BATCH, MAX_SEED, check_range, check_workers
     from rgmcad.runs.workflow import LAYOUT_FILE, optimize_scenario
     from rgmcad.viewer.report import write_run_report
 
     check_range(args.seed, 0, MAX_SEED, "--seed", "a seed")
+    if args.batch is not None:
+        check_range(args.batch, 1, MAX_BATCH, "--batch", "a number of simulations per batch")
     check_workers(args.workers)
     if args.run_dir is not None:  # and again, trying, when the run store opens it
         output_dir(args.run_dir, "--run")

@@ -12,7 +12,7 @@ from pathlib import Path
 from rgmcad.errors import UsageError
 from rgmcad.runs.executor import max_workers
 
-__all__ = ["MAX_SEED", "MAX_SAMPLES", "check_range", "check_workers", "check_output_file",
+__all__ = ["MAX_SEED", "MAX_SAMPLES", "MAX_BATCH", "check_range", "check_workers", "check_output_file",
            "check_plot_file", "plot_suffixes"]
 
 MAX_SEED = 2**32 - 1
@@ -20,6 +20,9 @@ MAX_SEED = 2**32 - 1
 
 MAX_SAMPLES = 100_000
 """Layouts per radius of ``evaluate``: 30 radii of 100 000 is three million simulations."""
+
+MAX_BATCH = 10_000
+"""Most simulations in one exploration batch (``optimize --batch``)."""
 
 
 def check_range(value, low: int, high: int, where: str, what: str) -> int:

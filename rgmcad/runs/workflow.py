@@ -28,6 +28,7 @@ from rgmcad.files import write_atomic, write_json_atomic
 from rgmcad.parts.family import family_digest
 from rgmcad.parts.store import DEFAULT_BUILD_DIR
 from rgmcad.runs.checks import (
+    MAX_BATCH,
     MAX_SAMPLES,
     MAX_SEED,
     check_plot_file,
@@ -168,7 +169,7 @@ def optimize_scenario(
     settings = budget_settings(budget) if settings is None else settings
     given = run_dir is not None
     if batch is not None:
-        check_range(batch, 1, 10_000, "batch", "a number of simulations per batch")
+        check_range(batch, 1, MAX_BATCH, "batch", "a number of simulations per batch")
         settings = settings.replace(exploration_batch=int(batch))
     parts = None if parts_dir is None else {
         name: family_digest(family) for name, family in scenario.families.items()}
