@@ -204,17 +204,16 @@ def _from_edges(path, grey, label, ids, marks, fits) -> PrintCheck:
     r = readings[paper]
     found = [v for v in (r.scale_w, r.scale_h) if v is not None]
     common = (str(path), label, ids, paper)
-    if bent or r.bow_mm > FLAT_EDGE_MM or (
-            len(found) == 2 and abs(r.scale_w - r.scale_h) > FLAT_AXES):
-        why = []
-        if bent:
-            why.append(f"a mark's corner is {worst:.2f} mm off the plane of the others")
-        if r.bow_mm > FLAT_EDGE_MM:
-            why.append(f"an edge bows by {r.bow_mm:.1f} mm")
-        if len(found) == 2 and abs(r.scale_w - r.scale_h) > FLAT_AXES:
-            why.append(f"width and height read {r.scale_w * 100:.1f} % and "
-                       f"{r.scale_h * 100:.1f} %")
-        return PrintCheck(str(path), label, ids, paper, Verdict.NOT_FLAT, None, None,
+    why = []
+    if bent:
+        why.append(f"a mark's corner is {worst:.2f} mm off the plane of the others")
+    if r.bow_mm > FLAT_EDGE_MM:
+        why.append(f"an edge bows by {r.bow_mm:.1f} mm")
+    if len(found) == 2 and abs(r.scale_w - r.scale_h) > FLAT_AXES:
+        why.append(f"width and height read {r.scale_w * 100:.1f} % and "
+                   f"{r.scale_h * 100:.1f} %")
+    if why:
+        return PrintCheck(*common, Verdict.NOT_FLAT, None, None,
                           "sheet-edges", f"sheet {label} is not flat ({'; '.join(why)}): "
                           "flatten the sheet and retake the photo",
                           (r.scale_w, r.scale_h), residual, r.bow_mm)

@@ -17,7 +17,7 @@ in millimetres (:mod:`~rgmcad.printing.svg`).
 from __future__ import annotations
 
 import logging
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 from rgmcad.errors import RgmcadError, ScenarioError
@@ -148,14 +148,14 @@ def make_template(parts, base_planes, out_dir, *, plane: str | None = None,
     # the sheets cover the first drawing; its labels are then placed again, clear of the
     # seams and inside what the sheets keep
     tiled = drawing.extent
-    sheets = tile_sheets(tiled, paper, orientation, (cols, rows), overlap_mm, 2)
+    sheets = tile_sheets(tiled, paper, orientation, (cols, rows), overlap_mm, 2)  # renumbered below
     if len(sheets) > 1:
         avoid, inside = label_keepouts(sheets, seams_of(sheets))
         drawing, outlines = build_drawing(parts, base_planes, frame, avoid=avoid, inside=inside,
                                           geoms=[o.outline for o in outlines], frames=frames)
     # the parts list names each part's sheets, and its length numbers the sheets' pages
     first = cover_page_count(outlines, map_info.size_mm, sheets) + 1
-    sheets = tile_sheets(tiled, paper, orientation, (cols, rows), overlap_mm, first)
+    sheets = tuple(replace(s, page=first + i) for i, s in enumerate(sheets))
     pdf_path, svg_path = out_dir / "template.pdf", out_dir / "template.svg"
     n_pages = write_pdf(pdf_path, title, drawing, outlines, frame, map_info, sheets,
                         (cols, rows), paper, orientation, overlap_mm)
