@@ -337,16 +337,24 @@ def test_optimize_refuses_a_run_directory_it_cannot_use(tmp_path, case, no_simul
         _optimize(run)
 
 
-@pytest.mark.skipif(os.name != "posix" or os.geteuid() == 0,
-                    reason="as root, a read-only folder can still be written")
-def test_optimize_refuses_a_read_only_run_directory(tmp_path, no_simulation):
-    run = tmp_path / "ro"
-    run.mkdir()
-    run.chmod(0o500)
-    try:
-        code, _, err = _cli(["optimize", SIMPLE, "--budget", "small", "--run", str(run)])
-    finally:
-        run.chmod(0o700)
+NOT_ROOT = pytest.mark.skipif(os.name != "posix" or os.geteuid() == 0,
+                              reason="as root, a read-only folder can still be written")
+
+
+@pytest.fixture
+def read_only_folder(tmp_path):
+    """A folder nobody but root can write into, writable again after the test."""
+    folder = tmp_path / "ro"
+    folder.mkdir()
+    folder.chmod(0o500)
+    yield folder
+    folder.chmod(0o700)
+
+
+@NOT_ROOT
+def test_optimize_refuses_a_read_only_run_directory(read_only_folder, no_simulation):
+    run = read_only_folder
+    code, _, err = _cli(["optimize", SIMPLE, "--budget", "small", "--run", str(run)])
     assert code == 2 and len(err.strip().splitlines()) == 1 and "--run" in err
     with pytest.raises(RunDirectoryError, match="Permission denied"):  # the library tries
         RunStore(run, run_identity("s", "0" * 64, 0, TINY))
@@ -368,15 +376,8 @@ def test_evaluate_refuses_a_plot_it_cannot_write_before_simulating(tmp_path, cas
         evaluate_layout(SIMPLE, "solved", samples=1, plot=out)
 
 
-@pytest.mark.skipif(os.name != "posix" or os.geteuid() == 0,
-                    reason="as root, a read-only folder can still be written")
-def test_evaluate_refuses_a_read_only_folder_for_its_plot(tmp_path, no_simulation):
-    folder = tmp_path / "ro"
-    folder.mkdir()
-    folder.chmod(0o500)
-    try:
-        code, _, err = _cli(["evaluate", SIMPLE, "--layout", "solved", "--out",
-                             str(folder / "rob.png")])
-    finally:
-        folder.chmod(0o700)
+@NOT_ROOT
+def test_evaluate_refuses_a_read_only_folder_for_its_plot(read_only_folder, no_simulation):
+    code, _, err = _cli(["evaluate", SIMPLE, "--layout", "solved", "--out",
+                         str(read_only_folder / "rob.png")])
     assert code == 2 and len(err.strip().splitlines()) == 1 and "--out" in err
