@@ -123,24 +123,16 @@ def simulate(scenario: Scenario, values, parts: Mapping[str, BuiltPart], *,
     settings = scenario.settings
     if observer is not None:
         hooks = (*hooks, _every(observer, observe_every))
-    if engine is None and observer is None:
-        engine = own_engine = Engine(renderer=False)
-    else:
-        own_engine = None
-    try:
-        with World(scene, settings, engine, cache) as world:
-            graph = CausalGraph(
-                scenario.events,
-                {name: make_condition(spec, world) for name, spec in scenario.events.items()},
-                settings.event_timeout,
-            )
-            ready_at = time.perf_counter()
-            t, steps = _run(world, graph, settings, tuple(hooks))
-            if observer is not None:
-                observer(world, t)
-    finally:
-        if own_engine is not None:
-            own_engine.close()
+    with World(scene, settings, engine, cache) as world:
+        graph = CausalGraph(
+            scenario.events,
+            {name: make_condition(spec, world) for name, spec in scenario.events.items()},
+            settings.event_timeout,
+        )
+        ready_at = time.perf_counter()
+        t, steps = _run(world, graph, settings, tuple(hooks))
+        if observer is not None:
+            observer(world, t)
     outcome = Outcome.SUCCESS if graph.resolved and graph.succeeded() else Outcome.FAILURE
     events = tuple(EventRecord(n, graph.state[n], graph.time[n]) for n in scenario.events)
     return SimulationResult(outcome, events, t, time.perf_counter() - start, steps, validity,

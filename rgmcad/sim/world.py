@@ -71,7 +71,8 @@ class World:
         self.settings = settings
         self.closed = False
         self._own_engine, self._own_cache = engine is None, cache is None
-        self.engine = e = Engine() if engine is None else engine
+        # a world's own engine only simulates: no renderer (pictures have engines of their own)
+        self.engine = e = Engine(renderer=False) if engine is None else engine
         self.cache = PartCache() if cache is None else cache
         e.hold(self)
         self.cid = e.cid
