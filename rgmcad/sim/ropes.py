@@ -86,20 +86,19 @@ class _Free:
         b = _unrotate(self.orn, rn)
         ii = self.inv_inertia
         k = self.inv_mass + b[0] * b[0] * ii[0] + b[1] * b[1] * ii[1] + b[2] * b[2] * ii[2]
-        return (n, rn), k
+        return (n, rn, b), k
 
     def rate(self, jac):
-        (n, rn), v = jac, self.v
+        (n, rn, _), v = jac, self.v
         return n[0] * v[0] + n[1] * v[1] + n[2] * v[2] + rn[0] * v[3] + rn[1] * v[4] + rn[2] * v[5]
 
     def push(self, jac, impulse):
         """Apply ``impulse`` along -J to the predicted state."""
-        (n, rn), v = jac, self.v
+        (n, _, b), v = jac, self.v  # b: the lever arm's moment in the body frame
         s = -impulse * self.inv_mass
         v[0] += s * n[0]
         v[1] += s * n[1]
         v[2] += s * n[2]
-        b = _unrotate(self.orn, rn)
         ii = self.inv_inertia
         dw = _rotate(self.orn, (-impulse * b[0] * ii[0], -impulse * b[1] * ii[1],
                                 -impulse * b[2] * ii[2]))
