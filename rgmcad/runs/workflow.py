@@ -207,8 +207,8 @@ def optimize_scenario(
 
                 progress.stage("robustness")
                 curve = robustness_on(executor, np.asarray(chosen["x"], dtype=float),
-                                      problem.validity, robustness_samples, seed, physics,
-                                      progress)
+                                      learner_problem.validity, robustness_samples, seed,
+                                      physics, progress)
                 robustness = {"samples_per_radius": robustness_samples,
                               **figures(curve, physics)}
         finally:
