@@ -12,6 +12,7 @@ Transforms of groups and elements apply; curves and arcs become chords of at mos
 
 from __future__ import annotations
 
+import functools
 import io
 import math
 import re
@@ -34,49 +35,55 @@ _PHYSICAL = re.compile(r"\s*[0-9.eE+-]+\s*(mm|cm|in|pt|pc|q)\s*$", re.IGNORECASE
 def read_points(file: str | Path, element: str | None = None) -> np.ndarray:
     """(k, 2) points (m) of the SVG path, in the drawing's frame with y up. ValueError (one
     line) if the file cannot be read or holds no such path."""
-    import svgelements as se
-
     path = Path(file)
     if not path.is_file():
         raise ValueError(f"no SVG file {str(path)!r}")
     raw = path.read_bytes()[:MAX_SVG_BYTES + 1]
     if len(raw) > MAX_SVG_BYTES:
         raise ValueError(f"{path.name}: larger than {MAX_SVG_BYTES // 2**20} MiB")
+    return _points(raw, element, path.name).copy()
+
+
+@functools.lru_cache(maxsize=4)
+def _points(raw: bytes, element: str | None, name: str) -> np.ndarray:
+    """:func:`read_points` of a file's bytes, kept: a run's drawing is counted, then placed."""
+    import svgelements as se
+
     try:
         doc = se.SVG.parse(io.BytesIO(raw))
     except Exception as exc:  # noqa: BLE001 - any parser failure is the file's fault
-        raise ValueError(f"{path.name}: not an SVG file ({type(exc).__name__})") from None
+        raise ValueError(f"{name}: not an SVG file ({type(exc).__name__})") from None
     for side in ("width", "height"):
         if not _PHYSICAL.match(str(doc.values.get(side, ""))):
-            raise ValueError(f"{path.name}: the drawing's {side} has no physical unit "
+            raise ValueError(f"{name}: the drawing's {side} has no physical unit "
                              "(mm, cm, in, pt); save it with its size in millimetres")
     paths = [e for e in doc.elements() if isinstance(e, se.Path) and len(e) > 0]
     if element is not None:
         paths = [e for e in paths if e.id == element]
     if not paths:
         which = f"no <path> with id {element!r}" if element else "no <path>"
-        raise ValueError(f"{path.name}: {which}")
+        raise ValueError(f"{name}: {which}")
     points: list[tuple[float, float]] = []
     pieces = 0
     for seg in paths[0].segments():
         if isinstance(seg, se.Move):
             pieces += 1
             if pieces > 1:
-                raise ValueError(f"{path.name}: the path lifts the pen (several pieces); "
+                raise ValueError(f"{name}: the path lifts the pen (several pieces); "
                                  "draw one continuous line")
             points.append(_xy(seg.end))
             continue
         n = 1 if isinstance(seg, se.Line | se.Close) else max(
             2, math.ceil(seg.length() * PX_TO_M / CHORD))
         if not len(points) + n <= MAX_POINTS:  # also refuses a length that is not a number
-            raise ValueError(f"{path.name}: the path is too long to follow (more than "
+            raise ValueError(f"{name}: the path is too long to follow (more than "
                              f"{MAX_POINTS * CHORD:g} m of curves)")
         points.extend(_xy(seg.point(t)) for t in np.linspace(0, 1, n + 1)[1:])
     pts = np.asarray(points, float)
     keep = np.concatenate([[True], np.linalg.norm(np.diff(pts, axis=0), axis=1) > 1e-9])
     pts = pts[keep]
     if len(pts) < 2 or not np.all(np.isfinite(pts)):
-        raise ValueError(f"{path.name}: the path has no length")
+        raise ValueError(f"{name}: the path has no length")
     return pts
 
 
