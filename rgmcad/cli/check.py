@@ -66,9 +66,11 @@ def run(args) -> int:
 
 def _outside(scenario, values) -> list[str]:
     """How far each parameter of ``values`` lies outside its range, in its unit."""
+    from rgmcad.runs.report import user_scale
+
     out = []
     for f, v in zip(scenario.free, values, strict=True):
-        k, unit = (1.0, "deg") if f.unit in ("deg", "degree", "degrees") else (1000.0, "mm")
+        k, unit = user_scale(f)
         if v < f.low or v > f.high:
             side, by = ("below", f.low - v) if v < f.low else ("above", v - f.high)
             out.append(f"{f.name} = {v * k:.6g} {unit} is {by * k:.3g} {unit} {side} its "
