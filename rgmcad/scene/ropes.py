@@ -19,13 +19,15 @@ from rgmcad.scene.model import Rope, RopePoint, Scenario
 class SceneRope:
     """``bodies``: the scene body each end is tied to (None: a fixed end), with ``local`` (2, 3)
     the points in those bodies' part frames; ``points`` (k + 2, 3): world points of the path
-    at the start (first end, k pulleys, second end); ``length`` m."""
+    at the start (first end, k pulleys, second end); ``length`` m; ``objects``: the object
+    each point of the path belongs to (None: the world)."""
 
     name: str
     bodies: tuple[str | None, str | None]
     local: np.ndarray
     points: np.ndarray
     length: float
+    objects: tuple[str | None, ...] = ()
 
     @property
     def initial_length(self) -> float:
@@ -46,10 +48,15 @@ def _moving(scenario: Scenario, at: RopePoint) -> bool:
     return at.object is not None and not scenario.objects[at.object].physical.static
 
 
-def _world_points(scenario: Scenario, rope: Rope, poses: Mapping[str, np.ndarray]) -> np.ndarray:
+def path_of(rope: Rope) -> tuple[RopePoint, ...]:
+    """The rope's points in order: first end, pulleys, second end."""
+    return (rope.ends[0], *rope.pulleys, rope.ends[1])
+
+
+def world_points(scenario: Scenario, rope: Rope, poses: Mapping[str, np.ndarray]) -> np.ndarray:
     """(..., k + 2, 3) world points of the rope's path, for poses (..., 4, 4) of every object."""
     out = []
-    for at in (rope.ends[0], *rope.pulleys, rope.ends[1]):
+    for at in path_of(rope):
         p = np.asarray(at.point, float)
         if at.object is None:
             out.append(np.broadcast_to(p, next(iter(poses.values())).shape[:-2] + (3,)))
@@ -63,12 +70,13 @@ def scene_ropes(scenario: Scenario, poses: Mapping[str, np.ndarray]) -> tuple[Sc
     """The scenario's ropes for one layout's world poses (every object's (4, 4))."""
     out = []
     for rope in scenario.ropes.values():
-        points = _world_points(scenario, rope, poses)
+        points = world_points(scenario, rope, poses)
         length = rope.length if rope.length is not None else path_length(points) + rope.slack
         out.append(SceneRope(
             rope.name,
             tuple(e.object if _moving(scenario, e) else None for e in rope.ends),
-            np.array([e.point for e in rope.ends], float), points, float(length)))
+            np.array([e.point for e in rope.ends], float), points, float(length),
+            tuple(at.object for at in path_of(rope))))
     return tuple(out)
 
 
@@ -80,5 +88,5 @@ def ropes_fit_many(scenario: Scenario, world: Mapping[str, np.ndarray],
     fits = np.ones(m, dtype=bool)
     for rope in scenario.ropes.values():
         if rope.length is not None:
-            fits &= path_length(_world_points(scenario, rope, world)) - rope.length <= tolerance
+            fits &= path_length(world_points(scenario, rope, world)) - rope.length <= tolerance
     return fits

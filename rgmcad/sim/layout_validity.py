@@ -12,17 +12,17 @@ import numpy as np
 
 from rgmcad.parts.pieces import BoxPiece
 from rgmcad.parts.store import BuiltBody
-from rgmcad.scene.ropes import ropes_fit_many
+from rgmcad.scene.ropes import path_of, ropes_fit_many, world_points
 from rgmcad.sim.cache import PartCache
+from rgmcad.sim.distances import _PRIMITIVES, signed_distances
+from rgmcad.sim.rope_validity import RopePath, rope_crossings
 from rgmcad.sim.validity import (
-    _PRIMITIVES,
     TOLERANCE,
     _boxes_apart,
     _is_ball,
     _manifold,
     _pair_penetration,
     _plane_depth,
-    signed_distances,
 )
 
 
@@ -134,6 +134,14 @@ class LayoutValidity:
             return valid
         world = world_poses_many(self.scenario, values)
         valid &= ropes_fit_many(self.scenario, world, tol)  # ropes long enough for their path
+        if self.scenario.ropes and valid.any():
+            bodies = self.solids + self.planes
+            paths = [RopePath(r.name, tuple(p.object for p in path_of(r)),
+                              world_points(self.scenario, r, world))
+                     for r in self.scenario.ropes.values()]
+            crossed = rope_crossings(bodies, np.stack([world[b.object] for b in bodies], axis=1),
+                                     paths, tol, self.cache, rows=np.flatnonzero(valid))
+            valid[[c.row for c in crossed]] = False
         poses = np.stack([world[b.object] for b in self.solids], axis=1)  # (m, n, 4, 4)
         rot = poses[..., :3, :3]
         centres = np.einsum("mnij,nj->mni", rot, self.local_centres) + poses[..., :3, 3]

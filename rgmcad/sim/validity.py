@@ -21,16 +21,17 @@ that touch are valid, a 0.5 mm overlap is not. The paper summed Bullet's contact
 from __future__ import annotations
 
 from dataclasses import dataclass
-from functools import singledispatch
 
 import manifold3d
 import numpy as np
 
 from rgmcad.geometry import invert, transform_points
-from rgmcad.parts.pieces import BoxPiece, CapsulePiece, CylinderPiece, SpherePiece
+from rgmcad.parts.pieces import SpherePiece
 from rgmcad.parts.store import BuiltBody
 from rgmcad.scene.bodies import Scene, SceneBody
 from rgmcad.sim.cache import PartCache
+from rgmcad.sim.distances import _PRIMITIVES, _signed_distance
+from rgmcad.sim.rope_validity import RopePath, rope_crossings
 
 TOLERANCE = 2e-4
 """Deepest penetration (m) still counted as touching."""
@@ -99,49 +100,6 @@ def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     a0, a1, a2 = a[..., 0], a[..., 1], a[..., 2]
     b0, b1, b2 = b[..., 0], b[..., 1], b[..., 2]
     return np.stack([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0], axis=-1)
-
-
-@singledispatch
-def signed_distances(piece, points: np.ndarray) -> np.ndarray:
-    """(m,) signed distances (m) from points (m, 3), given in the piece's own frame, to a
-    primitive piece (a box, sphere or cylinder)."""
-    raise TypeError(f"no signed distance to a {type(piece).__name__}")
-
-
-@signed_distances.register
-def _(piece: SpherePiece, points: np.ndarray) -> np.ndarray:
-    return np.linalg.norm(points, axis=-1) - piece.radius
-
-
-@signed_distances.register
-def _(piece: BoxPiece, points: np.ndarray) -> np.ndarray:
-    return _box_distance(np.abs(points) - np.asarray(piece.size, float) / 2)
-
-
-@signed_distances.register
-def _(piece: CylinderPiece, points: np.ndarray) -> np.ndarray:  # axis z
-    return _box_distance(np.stack([np.hypot(points[:, 0], points[:, 1]) - piece.radius,
-                                   np.abs(points[:, 2]) - piece.height / 2], axis=1))
-
-
-@signed_distances.register
-def _(piece: CapsulePiece, points: np.ndarray) -> np.ndarray:  # axis z
-    along = np.clip(points[:, 2], -piece.length / 2, piece.length / 2)
-    return np.linalg.norm(points - np.outer(along, [0, 0, 1]), axis=1) - piece.radius
-
-
-def _box_distance(q: np.ndarray) -> np.ndarray:
-    """Signed distances from per-axis excesses (m, k) over a box's half sizes."""
-    return np.linalg.norm(np.maximum(q, 0.0), axis=1) + np.minimum(q.max(axis=1), 0.0)
-
-
-def _signed_distance(point: np.ndarray, piece) -> float:
-    """Signed distance (m) from a point in the piece's parent frame to a primitive piece."""
-    return float(signed_distances(piece, transform_points(invert(piece.frame), point[None]))[0])
-
-
-_PRIMITIVES = tuple(t for t in signed_distances.registry if t is not object)
-"""Piece types that tile a part exactly and have a signed distance."""
 
 
 def _ball_depth(ball: BuiltBody, ball_pose, other: BuiltBody, other_pose) -> float | None:
@@ -258,4 +216,11 @@ def check_validity(
                     break
     overlaps.extend(Overlap(f"rope {r.name} (too short)", "its path", r.excess, 0.0)
                     for r in scene.ropes if r.excess > tolerance)  # depth: missing length
+    if scene.ropes and not (stop_at_first and overlaps):
+        bodies = list(scene.bodies.values())
+        overlaps.extend(Overlap(f"rope {c.rope} (through {c.body})", c.body, c.depth, 0.0)
+                        for c in rope_crossings(
+                            bodies, np.stack([b.pose for b in bodies])[None],
+                            [RopePath(r.name, r.objects, r.points[None]) for r in scene.ropes],
+                            tolerance, cache))
     return Validity(not overlaps, tuple(overlaps), tested)
