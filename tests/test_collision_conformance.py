@@ -301,24 +301,7 @@ def _sub_scene(scene: Scene, names: set[str]) -> Scene:
                  tuple(g for g in scene.welds if g[0] in names), scene.values)
 
 
-# LONGCHAIN's coin goblet is welded to a hinged lever with a counterweight: the probe then
-# comes at four wall sectors along the goblet's axis, grazing the leaning inner wall, and
-# pybullet meets them about 2 mm (normal to the wall) outside the exact piece, twice the 1 mm
-# margin allowed for hull children (a hinged link's children keep pybullet's default margin;
-# changeDynamics(collisionMargin=) reaches only a base's). Strict: it fails once that is fixed.
-# TEAPOT's bridge_blocker (a 10 x 25 x 5 mm box welded under the balance track) can only be
-# probed at an edge, which pybullet's box margin rounds: met 22 um late against 20 um allowed.
-KNOWN = {
-    "long_chain": pytest.mark.xfail(strict=True, reason="hull children of a hinged link: ~2 mm "
-                                    "margin (docs/decisions.md, issue 14)"),
-    "teapot": pytest.mark.xfail(strict=True, reason="a 5 mm box probed at its rounded edge, "
-                                "22 um late (docs/decisions.md, issue 14)"),
-}
-
-
-@pytest.mark.parametrize("path", [pytest.param(p, marks=KNOWN[p.stem]) if p.stem in KNOWN
-                                  else p for p in SCENARIOS],
-                         ids=[p.stem for p in SCENARIOS])
+@pytest.mark.parametrize("path", SCENARIOS, ids=[p.stem for p in SCENARIOS])
 def test_every_body_of_the_shipped_scenarios_collides_with_all_its_pieces(path, shapes):
     scenario = load_scenario(path)
     scene = scene_of(scenario)

@@ -152,3 +152,27 @@ def test_hooks_run_before_every_step_and_change_nothing():
     dt = sc.settings.timestep
     assert plain.outcome.value == "success" and plain.sim_time == plain.steps * dt
     assert seen == [i * dt for i in range(plain.steps)]  # not at the step that resolved it
+
+
+def test_a_hinged_body_is_where_its_pose_says_after_every_step():
+    # a plank hinged near one end swings down; a ray cast at its free end meets its top face
+    # where World.pose puts it (a link's pose read without forward kinematics lagged a step)
+    from _support import tiny
+
+    from rgmcad.sim.engine import pb
+
+    lever = {"part": "lever", "mass": 0.05, "params": {
+        "length": 0.2, "width": 0.02, "thickness": 0.01, "pivot_x": -0.09}}
+    sc = tiny({"a": lever}, {"e": {"type": "falling", "body": "a"}})
+    with World(scene_of(sc), sc.settings) as world:
+        for step in range(60):
+            world.step()
+            if step % 20:
+                continue
+            pose = world.pose("a")
+            tip = pose[:3, :3] @ np.array([0.08, 0.0, 0.005]) + pose[:3, 3]  # on the top face
+            normal = pose[:3, 2]
+            start, end = tip + 0.05 * normal, tip - 0.05 * normal
+            hit = pb.rayTest(start.tolist(), end.tolist(), physicsClientId=world.cid)[0]
+            assert hit[0] == world.handles["a"].uid
+            assert np.linalg.norm(np.asarray(hit[3]) - tip) < 1e-6

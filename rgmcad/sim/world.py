@@ -341,8 +341,9 @@ class World:
             if velocity:
                 return pos, orn, *pb.getBaseVelocity(h.uid, physicsClientId=self.cid)
             return pos, orn
+        # without forward kinematics a link's pose is the step before's (its velocity is current)
         state = pb.getLinkState(h.uid, h.link, computeLinkVelocity=int(velocity),
-                                physicsClientId=self.cid)
+                                computeForwardKinematics=1, physicsClientId=self.cid)
         if velocity:
             return state[0], state[1], state[6], state[7]
         return state[0], state[1]
