@@ -21,6 +21,14 @@ from shapely.ops import nearest_points
 from rgmcad.printing.inputs import PlacedPart
 from rgmcad.printing.labels import NOTE_MM, block_size, label_lines, place_labels
 from rgmcad.printing.plane import AXIS_FRAMES, PlaneFrame
+from rgmcad.printing.ropes import (
+    ROPE_MM,
+    ROPE_RGB,
+    RopeOutline,
+    point_ring,
+    rope_lines,
+    rope_path,
+)
 
 PALETTE = (
     (1.00, 0.80, 0.80),
@@ -37,6 +45,8 @@ PALETTE = (
 
 OUTLINE_MM = 0.25
 """Stroke width of a part's outline, mm."""
+POINT_MM_PAD = 1.5
+"""How far (mm) labels keep from a rope's path."""
 
 
 @dataclass(frozen=True, eq=False)
@@ -270,16 +280,18 @@ class Drawing:
     items: tuple  # PathItem | TextItem, in drawing order
     extent: tuple[float, float, float, float]  # u0, v0, u1, v1 mm
     minimap: tuple  # PathItem items for the assembly map (no text)
+    ropes: tuple[RopeOutline, ...] = ()
 
 
 def build_drawing(parts, base_planes, frame: PlaneFrame, *, geoms=None, avoid=(),
-                  inside=None, frames=()) -> tuple[Drawing, tuple[PartOutline, ...]]:
+                  inside=None, frames=(), ropes=()) -> tuple[Drawing, tuple[PartOutline, ...]]:
     """The drawing of posed parts on a plane, and each part as drawn (in placement order).
 
     ``geoms`` are the parts' silhouettes when already known (in placement order); ``avoid``
     and ``inside`` steer the labels (see :func:`rgmcad.printing.labels.place_labels`);
     ``frames`` (:class:`rgmcad.printing.inputs.FrameNote`) are marked at their origins with
-    their tolerances.
+    their tolerances; ``ropes`` (:class:`rgmcad.printing.ropes.PlacedRope`) are drawn along
+    their paths, labelled with the length to cut.
     Raises ``ValueError`` naming a part whose mesh projects to nothing on the plane.
     """
     parts = sorted(parts, key=lambda p: (p.order, p.name))
@@ -298,9 +310,13 @@ def build_drawing(parts, base_planes, frame: PlaneFrame, *, geoms=None, avoid=()
     marks = [Point(*frame.to_drawing(f.origin)[0]).buffer(2.0) for f in frames]
     frame_lines = [[(f.notes[0], NOTE_MM, True), *((n, NOTE_MM, False) for n in f.notes[1:])]
                    for f in frames]
-    boxes = place_labels(outlines + marks, sizes + [block_size(x) for x in frame_lines],
+    paths = [rope_path(r, frame) for r in ropes]
+    lines_of_ropes = [rope_lines(r) for r in ropes]
+    boxes = place_labels(outlines + marks + [LineString(p).buffer(POINT_MM_PAD) for p in paths],
+                         sizes + [block_size(x) for x in frame_lines + lines_of_ropes],
                          avoid, inside)
-    boxes, frame_boxes = boxes[:len(outlines)], boxes[len(outlines):]
+    boxes, frame_boxes, rope_boxes = (boxes[:len(outlines)], boxes[len(outlines):len(
+        outlines) + len(marks)], boxes[len(outlines) + len(marks):])
 
     colours = fill_colours(outlines)
     fills, strokes, texts, leaders, arrows = [], [], [], [], []
@@ -344,7 +360,21 @@ def build_drawing(parts, base_planes, frame: PlaneFrame, *, geoms=None, avoid=()
         pb, po = nearest_points(shapely_box(*box), mark)
         leaders.append(PathItem((np.array([[pb.x, pb.y], [po.x, po.y]]),), closed=False,
                                 stroke=(0.35, 0.35, 0.35), width=0.15, cls="leader"))
-    bounds = np.array([g.bounds for g in outlines + marks] + list(boxes) + list(frame_boxes))
+    drawn_ropes, rope_strokes = [], []
+    for rope, path, box, lines in zip(ropes, paths, rope_boxes, lines_of_ropes, strict=True):
+        ident = f"rope-{rope.name}"
+        rope_strokes.append(PathItem((path,), closed=False, stroke=ROPE_RGB, width=ROPE_MM,
+                                     cls="rope", ident=ident))
+        rope_strokes += [PathItem((point_ring(p),), stroke=ROPE_RGB, width=0.3,
+                                  cls="rope-point") for p in path]
+        texts += _text_items(box, lines)
+        pb, po = nearest_points(shapely_box(*box), LineString(path))
+        leaders.append(PathItem((np.array([[pb.x, pb.y], [po.x, po.y]]),), closed=False,
+                                stroke=(0.35, 0.35, 0.35), width=0.15, cls="leader"))
+        drawn_ropes.append(RopeOutline(rope, path, box))
+    bounds = np.array([g.bounds for g in outlines + marks]
+                      + [(*p.min(0), *p.max(0)) for p in paths]
+                      + list(boxes) + list(frame_boxes) + list(rope_boxes))
     pad = 5.0
     extent = (bounds[:, 0].min() - pad, bounds[:, 1].min() - pad,
               bounds[:, 2].max() + pad, bounds[:, 3].max() + pad)
@@ -377,6 +407,6 @@ def build_drawing(parts, base_planes, frame: PlaneFrame, *, geoms=None, avoid=()
                 texts.append(TextItem(ou + at[0], ov + at[1], name, NOTE_MM))
         texts.append(TextItem(ou + 0.8, ov - 3.0, "world origin", NOTE_MM))
 
-    items = tuple(fills + strokes + refs + arrows + leaders + texts)
-    minimap = tuple(fills + strokes)
-    return Drawing(items, extent, minimap), tuple(results)
+    items = tuple(fills + strokes + refs + rope_strokes + arrows + leaders + texts)
+    minimap = tuple(fills + strokes + rope_strokes)
+    return Drawing(items, extent, minimap, tuple(drawn_ropes)), tuple(results)

@@ -17,6 +17,7 @@ import numpy as np
 from rgmcad.printing.drawing import Drawing, TextItem
 from rgmcad.printing.labels import font_name, pdf_safe, text_width, wrap
 from rgmcad.printing.plane import PlaneFrame
+from rgmcad.printing.ropes import rope_rows
 from rgmcad.printing.seams import seams_of
 from rgmcad.printing.sheetpage import (
     PRINT_NOTE,
@@ -196,17 +197,18 @@ def _part_rows(parts, sheets, width: float) -> list[str]:
     return rows
 
 
-def _parts_list(parts, size_mm, sheets=()) -> list[list[tuple[float, float, str]]]:
+def _parts_list(parts, size_mm, sheets=(), ropes=()) -> list[list[tuple[float, float, str]]]:
     """The parts list's lines as ``(x, y, text)`` sheet mm, per page: the first page's, then
     those of each continuation page; in as few columns (up to three) as give the fewest
-    pages."""
+    pages. The ropes (:class:`~rgmcad.printing.ropes.RopeOutline`) come last."""
     w, h = size_mm
     best = None
     for ncol in (1, 2, 3):
         col_w = (w - 2 * MARGIN_MM - 4.0 * (ncol - 1)) / ncol
         pages: list[list[tuple[float, float, str]]] = [[]]
         col, y, y_top, y_bottom = 0, _PARTS_Y + 4.0, _PARTS_Y + 4.0, h - MARGIN_MM - BAND_MM
-        for text in _part_rows(parts, sheets, col_w - 6.0):
+        for text in _part_rows(parts, sheets, col_w - 6.0) + _rope_rows(ropes, sheets,
+                                                                       col_w - 6.0):
             if y > y_bottom - 2.0:
                 col += 1
                 y = y_top
@@ -221,13 +223,22 @@ def _parts_list(parts, size_mm, sheets=()) -> list[list[tuple[float, float, str]
     return best
 
 
-def cover_page_count(parts, size_mm, sheets=()) -> int:
+def _rope_rows(ropes, sheets, width: float) -> list[str]:
+    rows = []
+    for text in rope_rows(ropes, sheets):
+        rows += [chunk if i == 0 else "    " + chunk
+                 for i, chunk in enumerate(wrap(text, 2.2, width))]
+    return rows
+
+
+def cover_page_count(parts, size_mm, sheets=(), ropes=()) -> int:
     """Pages before the tiled sheets: the first page and the parts list's continuations.
 
     ``parts`` are :class:`rgmcad.printing.drawing.PartOutline`; ``size_mm`` the first
-    page's ``(width, height)``; ``sheets`` the tiled sheets (the list names each part's).
+    page's ``(width, height)``; ``sheets`` the tiled sheets (the list names each part's);
+    ``ropes`` the drawing's ropes (listed after the parts).
     """
-    return len(_parts_list(parts, size_mm, sheets))
+    return len(_parts_list(parts, size_mm, sheets, ropes))
 
 
 def _cover_pages(pdf, drawing, parts, info: SheetInfo, sheets, grid, title, frame, paper,
@@ -300,6 +311,8 @@ def _cover_pages(pdf, drawing, parts, info: SheetInfo, sheets, grid, title, fram
         ("frame (circle and cross): a run's or joint's origin, with its tolerances; moving "
          "or turning the frame moves all its parts", False),
         ("dash-dot line: a base plane (floor, board) seen edge-on", False),
+        ("dark red line: a rope's path, circles at its hooks and pulleys; cut it to the "
+         "length in its label and the parts list", False),
         ("magenta line: a seam. On the sheet to the right or below, cut along it; lay that "
          "cut edge on the same line of the sheet to the left or above (its hatched strip "
          "goes under), letter pairs meeting (AB on AB); tape across", False),
@@ -318,9 +331,9 @@ def _cover_pages(pdf, drawing, parts, info: SheetInfo, sheets, grid, title, fram
             ly += 2.9
 
     # parts list, continued on further pages when long
-    pdf.text(x0, _PARTS_Y, "Parts, in placement order [the sheets they are on]", 2.8,
+    pdf.text(x0, _PARTS_Y, "Parts, in placement order, then ropes [the sheets they are on]", 2.8,
              bold=True)
-    for i, lines in enumerate(_parts_list(parts, (w, h), sheets)):
+    for i, lines in enumerate(_parts_list(parts, (w, h), sheets, drawing.ropes)):
         if i:
             pdf.new_page(w, h)
             pdf.text(x0, MARGIN_MM + 5.0, f"{title} - parts, continued", 2.8, bold=True)

@@ -25,6 +25,7 @@ from rgmcad.printing.drawing import PartOutline, build_drawing
 from rgmcad.printing.inputs import template_inputs
 from rgmcad.printing.pdf import cover_page_count, write_pdf
 from rgmcad.printing.plane import PlaneFrame, resolve_plane
+from rgmcad.printing.ropes import scene_ropes
 from rgmcad.printing.seams import label_keepouts, seams_of
 from rgmcad.printing.sheets import MAP_SLOT, SheetInfo, sheet_info
 from rgmcad.printing.svg import write_svg
@@ -69,6 +70,8 @@ class TemplateResult:
         Pages in the PDF: the first page, parts-list continuation pages, the sheets.
     frames : tuple of FrameNote
         Frames whose tolerances are marked at their origin.
+    ropes : tuple of RopeOutline
+        The ropes as drawn (their paths, drawing mm), in the order given.
     """
 
     pdf: Path
@@ -87,11 +90,12 @@ class TemplateResult:
     overlap_mm: float
     n_pages: int = 0
     frames: tuple = ()
+    ropes: tuple = ()
 
 
 def make_template(parts, base_planes, out_dir, *, plane: str | None = None,
                   paper: str | None = None, orientation: str | None = None,
-                  overlap_mm: float = 12.0, title: str = "", frames=()) -> TemplateResult:
+                  overlap_mm: float = 12.0, title: str = "", frames=(), ropes=()) -> TemplateResult:
     """Write a printable 1:1 tiled assembly template of a posed layout.
 
     Parameters
@@ -117,6 +121,8 @@ def make_template(parts, base_planes, out_dir, *, plane: str | None = None,
         Printed on every page.
     frames : sequence of FrameNote
         Frames whose tolerances are stated once, at their origin.
+    ropes : sequence of PlacedRope
+        Ropes drawn along their paths and listed with the length to cut.
 
     Returns
     -------
@@ -135,7 +141,7 @@ def make_template(parts, base_planes, out_dir, *, plane: str | None = None,
     out_dir.mkdir(parents=True, exist_ok=True)
     title = title or "rgmcad layout"
     frame = resolve_plane(parts, base_planes, plane)
-    drawing, outlines = build_drawing(parts, base_planes, frame, frames=frames)
+    drawing, outlines = build_drawing(parts, base_planes, frame, frames=frames, ropes=ropes)
     u0, v0, u1, v1 = drawing.extent
     width, height = u1 - u0, v1 - v0
     paper, orientation, cols, rows = choose_paper(width, height, paper, orientation,
@@ -152,9 +158,10 @@ def make_template(parts, base_planes, out_dir, *, plane: str | None = None,
     if len(sheets) > 1:
         avoid, inside = label_keepouts(sheets, seams_of(sheets))
         drawing, outlines = build_drawing(parts, base_planes, frame, avoid=avoid, inside=inside,
-                                          geoms=[o.outline for o in outlines], frames=frames)
+                                          geoms=[o.outline for o in outlines], frames=frames,
+                                          ropes=ropes)
     # the parts list names each part's sheets, and its length numbers the sheets' pages
-    first = cover_page_count(outlines, map_info.size_mm, sheets) + 1
+    first = cover_page_count(outlines, map_info.size_mm, sheets, drawing.ropes) + 1
     sheets = tuple(replace(s, page=first + i) for i, s in enumerate(sheets))
     pdf_path, svg_path = out_dir / "template.pdf", out_dir / "template.svg"
     n_pages = write_pdf(pdf_path, title, drawing, outlines, frame, map_info, sheets,
@@ -168,14 +175,15 @@ def make_template(parts, base_planes, out_dir, *, plane: str | None = None,
         orientation=orientation, grid=(cols, rows), sheet_labels=tuple(s.label for s in sheets),
         sheets=sheets, map_sheet=map_info, tag_centres=centres, parts=outlines,
         extent_mm=drawing.extent, overlap_mm=float(overlap_mm), n_pages=n_pages,
-        frames=tuple(frames),
+        frames=tuple(frames), ropes=drawing.ropes,
     )
 
 
 def scene_template(scenario, scene, out_dir, *, tolerances=None, plane: str | None = None,
                    paper: str | None = None, overlap_mm: float = 12.0,
                    title: str = "") -> TemplateResult:
-    """:func:`make_template` of a posed scene of ``scenario``, parts in placement order.
+    """:func:`make_template` of a posed scene of ``scenario``, parts in placement order, with
+    its ropes.
 
     ``tolerances`` (``{"object.component": (down, up)}``, metres or degrees) are printed
     beside the parts (see :mod:`rgmcad.printing.inputs`). A plane the scenario lacks, an
@@ -185,7 +193,8 @@ def scene_template(scenario, scene, out_dir, *, tolerances=None, plane: str | No
     parts, planes, frames = template_inputs(scenario, scene, tolerances)
     try:
         return make_template(parts, planes, out_dir, plane=plane, paper=paper,
-                             overlap_mm=overlap_mm, title=title, frames=frames)
+                             overlap_mm=overlap_mm, title=title, frames=frames,
+                             ropes=scene_ropes(scene))
     except RgmcadError:
         raise
     except ValueError as exc:
