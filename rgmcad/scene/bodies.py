@@ -96,6 +96,7 @@ def make_scene(scenario: Scenario, values, parts: Mapping[str, BuiltPart]) -> Sc
     poses = world_poses(scenario, values)
     bodies: dict[str, SceneBody] = {}
     hinges: list[Hinge] = []
+    fixed_parts: list[list[str]] = []
     for obj in scenario.objects.values():
         if obj.part == FRAME:
             continue
@@ -109,6 +110,9 @@ def make_scene(scenario: Scenario, values, parts: Mapping[str, BuiltPart]) -> Sc
             static = obj.physical.static or key != MAIN
             physical = obj.physical if key == MAIN else Physical()
             bodies[name] = SceneBody(name, obj.name, built, pose, physical, static)
+        if obj.physical.static and part.joints:  # a static lever: one rigid, fixed body
+            fixed_parts.append([_sub(obj.name, key) for key in part.bodies])
+            continue
         for joint in part.joints:
             hinges.append(Hinge(
                 moving=_sub(obj.name, joint.moving), fixed=_sub(obj.name, joint.fixed),
@@ -116,6 +120,10 @@ def make_scene(scenario: Scenario, values, parts: Mapping[str, BuiltPart]) -> Sc
                 axis=pose[:3, :3] @ np.asarray(joint.axis, float),
             ))
     welds = _weld_groups(scenario)
+    for members in fixed_parts:  # into the weld group of its main body, or a group of its own
+        group = next((g for g in welds if members[0] in g), None)
+        welds = tuple(g for g in welds if g is not group) + (
+            (*group, *members[1:]) if group else tuple(members),)
     for joint in scenario.joints:
         if joint.kind == "hinge":
             moving = joint.objects[0]

@@ -37,7 +37,7 @@ def _mass_of(bodies: list[tuple[SceneBody, np.ndarray]]) -> _Mass:
         parts.append((m, com, inertia))
         total += m
         moment += m * com
-    com = moment / total
+    com = moment / total if total > 0 else np.zeros(3)  # all static: the frame's origin
     inertia = np.zeros((3, 3))
     for m, c, i in parts:
         d = c - com
