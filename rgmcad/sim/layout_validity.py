@@ -140,7 +140,8 @@ class LayoutValidity:
                               world_points(self.scenario, r, world))
                      for r in self.scenario.ropes.values()]
             crossed = rope_crossings(bodies, np.stack([world[b.object] for b in bodies], axis=1),
-                                     paths, tol, self.cache, rows=np.flatnonzero(valid))
+                                     paths, tol, self.cache, rows=np.flatnonzero(valid),
+                                     exact=False)
             valid[[c.row for c in crossed]] = False
         poses = np.stack([world[b.object] for b in self.solids], axis=1)  # (m, n, 4, 4)
         rot = poses[..., :3, :3]

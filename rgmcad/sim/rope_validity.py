@@ -31,7 +31,7 @@ from rgmcad.sim.cache import PartCache
 
 RESOLUTION = 1e-6
 """How close (m) the deepest point found is to the true deepest point."""
-_SAMPLES_PER_METRE = 200  # first samples along a segment, before any halving
+_SAMPLES_PER_METRE = 1000  # first samples along a segment, before any halving
 _MAX_POINTS = 200_000  # of one segment against one body: a rope lying at the tolerance's depth
 
 
@@ -53,35 +53,50 @@ class Crossing:
     depth: float  # m, of the rope's deepest point inside the body
 
 
-def _mesh_distance(triangles: np.ndarray, points: np.ndarray) -> np.ndarray:
-    """(p,) signed distance (m, negative inside) from points (p, 3) to the closed surface of
-    triangles (t, 3, 3): the nearest triangle's distance; inside where the generalised winding
-    number (the triangles' solid angles seen from the point over 4 pi) exceeds one half."""
+def _mesh_distance(mesh: dict, points: np.ndarray) -> np.ndarray:
+    """(p,) signed distance (m, negative inside) from points (p, 3) to the closed surface of a
+    :func:`_triangles` mesh: the nearest triangle's distance; inside where the generalised
+    winding number (the triangles' solid angles seen from the point over 4 pi) exceeds one
+    half."""
+    a, b, c = mesh["a"], mesh["b"], mesh["c"]
+    ab, ac, bc, normal, area2 = mesh["ab"], mesh["ac"], mesh["bc"], mesh["normal"], mesh["area2"]
+    d00, d01, d11, denom = mesh["d00"], mesh["d01"], mesh["d11"], mesh["denom"]
     out = np.empty(len(points))
-    chunk = max(1, 250_000 // len(triangles))
-    a, b, c = triangles[:, 0], triangles[:, 1], triangles[:, 2]
-    ab, ac, bc = b - a, c - a, c - b
-    normal = np.cross(ab, ac)
-    normal /= np.linalg.norm(normal, axis=1, keepdims=True)
+    chunk = max(1, 250_000 // len(a))
     for start in range(0, len(points), chunk):
         p = points[start:start + chunk, None, :]  # (q, 1, 3)
         ap = p - a
         dist = np.minimum(np.minimum(_to_segment(ap, ab), _to_segment(p - b, bc)),
                           _to_segment(ap, ac))
-        height = np.einsum("qtj,tj->qt", ap, normal)
-        foot = ap - height[..., None] * normal  # projection onto the plane, from a
-        inside = ((np.einsum("qtj,tj->qt", np.cross(ab, foot), normal) >= 0)
-                  & (np.einsum("qtj,tj->qt", np.cross(bc, foot - ab), normal) >= 0)
-                  & (np.einsum("qtj,tj->qt", np.cross(ac, foot), normal) <= 0))
-        dist = np.where(inside, np.minimum(dist, np.abs(height)), dist).min(axis=1)
+        d20, d21 = np.einsum("qtj,tj->qt", ap, ab), np.einsum("qtj,tj->qt", ap, ac)
+        v, w = (d11 * d20 - d01 * d21) / denom, (d00 * d21 - d01 * d20) / denom
+        height = np.einsum("qtj,tj->qt", ap, normal)  # the foot on the plane is inside:
+        dist = np.where((v >= 0) & (w >= 0) & (v + w <= 1), np.minimum(dist, np.abs(height)),
+                        dist).min(axis=1)
         ra, rb, rc = a - p, b - p, c - p
-        la, lb, lc = (np.linalg.norm(r, axis=2) for r in (ra, rb, rc))
-        det = np.einsum("qtj,qtj->qt", ra, np.cross(rb, rc))
+        la, lb, lc = (np.sqrt(np.einsum("qtj,qtj->qt", r, r)) for r in (ra, rb, rc))
+        det = -height * area2  # ra . (rb x rc), the tetrahedron's signed volume x 6
         den = (la * lb * lc + np.einsum("qtj,qtj->qt", ra, rb) * lc
                + np.einsum("qtj,qtj->qt", ra, rc) * lb + np.einsum("qtj,qtj->qt", rb, rc) * la)
         winding = np.arctan2(det, den).sum(axis=1) / (2 * np.pi)
         out[start:start + chunk] = np.where(np.abs(winding) > 0.5, -dist, dist)
     return out
+
+
+def _triangles(built: BuiltBody) -> dict:
+    """A body's mesh triangles (corners, edges, unit normals, twice the areas) and the dot
+    products of their edges, computed once per part."""
+    tri = np.asarray(built.vertices, float)[np.asarray(built.faces)]
+    a, b, c = tri[:, 0], tri[:, 1], tri[:, 2]
+    ab, ac = b - a, c - a
+    cross = np.cross(ab, ac)
+    area2 = np.linalg.norm(cross, axis=1)
+    keep = area2 > 1e-18  # degenerate triangles add nothing to either sum
+    d00, d01, d11 = (np.einsum("tj,tj->t", x, y) for x, y in ((ab, ab), (ab, ac), (ac, ac)))
+    mesh = {"a": a, "b": b, "c": c, "ab": ab, "ac": ac, "bc": c - b,
+            "normal": cross / np.where(keep, area2, 1.0)[:, None], "area2": area2,
+            "d00": d00, "d01": d01, "d11": d11, "denom": d00 * d11 - d01 * d01}
+    return {k: v[keep] for k, v in mesh.items()}
 
 
 def _to_segment(ap: np.ndarray, ab: np.ndarray) -> np.ndarray:
@@ -96,19 +111,22 @@ def _signed_distance(built: BuiltBody, cache: PartCache) -> Callable[[np.ndarray
     if len(pieces) == 1 and isinstance(pieces[0], SpherePiece):
         centre, radius = np.asarray(pieces[0].frame, float)[:3, 3], pieces[0].radius
         return lambda points: np.linalg.norm(points - centre, axis=1) - radius
-    triangles = cache.get("rope triangles", built, lambda: np.asarray(
-        built.vertices, float)[np.asarray(built.faces)])
-    return lambda points: _mesh_distance(triangles, points)
+    mesh = cache.get("rope triangles", built, lambda: _triangles(built))
+    return lambda points: _mesh_distance(mesh, points)
 
 
-def _deepest(distance, a: np.ndarray, b: np.ndarray, tolerance: float) -> float:
+def _deepest(distance, a: np.ndarray, b: np.ndarray, tolerance: float,
+             exact: bool = True) -> float:
     """Depth (m, > tolerance) of the deepest point of segment a -> b (3,) under the signed
-    ``distance``, or 0 when no point lies deeper than ``tolerance`` (branch and bound)."""
+    ``distance``, or 0 when no point lies deeper than ``tolerance`` (branch and bound); not
+    ``exact``: the depth of the first point found deeper than ``tolerance``."""
     length = float(np.linalg.norm(b - a))
-    ts = np.linspace(0.0, 1.0, int(np.clip(length * _SAMPLES_PER_METRE, 1, 64)) + 1)
+    ts = np.linspace(0.0, 1.0, int(np.clip(length * _SAMPLES_PER_METRE, 1, 128)) + 1)
     sd = distance(a + ts[:, None] * (b - a))
     while len(ts) < _MAX_POINTS:
         best = float(-sd.min())
+        if best > tolerance and not exact:
+            break
         bound = (np.diff(ts) * length - sd[:-1] - sd[1:]) / 2
         open_ = np.flatnonzero(bound > max(best, tolerance) + RESOLUTION)
         if len(open_) == 0:
@@ -135,12 +153,13 @@ def _clip_to_box(a: np.ndarray, b: np.ndarray, lo: np.ndarray, hi: np.ndarray
 
 
 def rope_crossings(bodies: Sequence, poses: np.ndarray, ropes: Sequence[RopePath],
-                   tolerance: float, cache: PartCache, rows: np.ndarray | None = None
-                   ) -> list[Crossing]:
+                   tolerance: float, cache: PartCache, rows: np.ndarray | None = None,
+                   exact: bool = True) -> list[Crossing]:
     """Every (layout, rope, body) where a segment of a rope lies deeper than ``tolerance``
     inside a body it does not belong to; ``bodies`` are scene bodies (``name``, ``object``,
     ``built``; None: an infinite plane, the +Z side of its pose) posed at ``poses``
-    (m, n, 4, 4); ``rows`` limits the test to those layouts."""
+    (m, n, 4, 4); ``rows`` limits the test to those layouts. Not ``exact``: the same
+    crossings, each with the depth of a point deeper than ``tolerance``, not the deepest."""
     rows = np.arange(poses.shape[0]) if rows is None else np.asarray(rows, int)
     siblings: dict[str, list[int]] = {}
     for i, body in enumerate(bodies):
@@ -167,7 +186,7 @@ def rope_crossings(bodies: Sequence, poses: np.ndarray, ropes: Sequence[RopePath
                 body, row = bodies[i], rows[r]
                 if body.object not in ends:
                     depth = _segment_depth(body.built, local(row, i, a[r]),
-                                           local(row, i, b[r]), tolerance, cache)
+                                           local(row, i, b[r]), tolerance, cache, exact)
                     if depth > tolerance and all(
                             distance(row, j, p) > tolerance
                             for j in siblings[body.object] for p in (a[r], b[r])):
@@ -192,7 +211,7 @@ def _world_boxes(bodies: Sequence, poses: np.ndarray) -> tuple[np.ndarray, np.nd
 
 
 def _segment_depth(built: BuiltBody | None, a: np.ndarray, b: np.ndarray, tolerance: float,
-                   cache: PartCache) -> float:
+                   cache: PartCache, exact: bool = True) -> float:
     """Deepest (m) the segment a -> b (3, in the body's part frame) reaches inside the body,
     or 0 when it stays within ``tolerance`` of its outside."""
     if built is None:  # the half-space z <= 0: deepest at an end
@@ -201,4 +220,4 @@ def _segment_depth(built: BuiltBody | None, a: np.ndarray, b: np.ndarray, tolera
     clipped = _clip_to_box(a, b, lo + tolerance, hi - tolerance)
     if clipped is None:
         return 0.0
-    return _deepest(_signed_distance(built, cache), *clipped, tolerance)
+    return _deepest(_signed_distance(built, cache), *clipped, tolerance, exact)
