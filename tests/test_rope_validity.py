@@ -42,10 +42,10 @@ def test_a_rope_through_a_box_is_invalid_by_its_depth_inside():
     assert not validity.valid
     (overlap,) = validity.overlaps
     assert overlap.first == "rope r (through b)" and overlap.second == "b"
-    assert overlap.depth == pytest.approx(0.005, abs=1e-9)
+    assert overlap.depth == pytest.approx(0.005, abs=1e-5)  # reported to 10 um
     # 10 mm inside: the box's mid-height plane is the deepest (half its height)
     assert check_validity(scene_of(hanging({"b": shelf(0.0)}))).overlaps[0].depth == \
-        pytest.approx(0.01, abs=1e-9)
+        pytest.approx(0.01, abs=1e-5)
 
 
 @pytest.mark.parametrize("x, valid", [(0.0503, True), (0.0499, True), (0.0497, False),

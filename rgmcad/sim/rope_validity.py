@@ -10,7 +10,8 @@ track's wall on its base) is inside the solid but on the surface of each piece.
 The deepest point of a segment is found by branch and bound: the signed distance is
 1-Lipschitz, so an interval whose ends lie at distances ``s0``, ``s1`` reaches at most
 ``(l - s0 - s1) / 2`` deep; intervals that might reach deeper than the tolerance (or than the
-deepest point found) are halved until none can, to within a micrometre.
+deepest point found) are halved until none can: decided to a micrometre, the depth reported
+to 10 micrometres.
 
 A segment is not tested against the objects its two points belong to: the object named at
 that point, and any object with a body the point lies in or on (within the tolerance), such
@@ -30,9 +31,11 @@ from rgmcad.parts.store import BuiltBody
 from rgmcad.sim.cache import PartCache
 
 RESOLUTION = 1e-6
-"""How close (m) the deepest point found is to the true deepest point."""
+"""How close (m) to the tolerance a segment's deepest point may lie undecided."""
+DEPTH_RESOLUTION = 1e-5
+"""How close (m) a reported depth is to the true deepest point's."""
 _SAMPLES_PER_METRE = 1000  # first samples along a segment, before any halving
-_MAX_POINTS = 200_000  # of one segment against one body: a rope lying at the tolerance's depth
+_MAX_POINTS = 20_000  # of one segment against one body: a rope lying at the tolerance's depth
 
 
 @dataclass(frozen=True)
@@ -128,7 +131,8 @@ def _deepest(distance, a: np.ndarray, b: np.ndarray, tolerance: float,
         if best > tolerance and not exact:
             break
         bound = (np.diff(ts) * length - sd[:-1] - sd[1:]) / 2
-        open_ = np.flatnonzero(bound > max(best, tolerance) + RESOLUTION)
+        open_ = np.flatnonzero(bound > (best + DEPTH_RESOLUTION if best > tolerance
+                                         else tolerance + RESOLUTION))
         if len(open_) == 0:
             break
         mid = (ts[open_] + ts[open_ + 1]) / 2
@@ -184,13 +188,16 @@ def rope_crossings(bodies: Sequence, poses: np.ndarray, ropes: Sequence[RopePath
                           & (lo < np.maximum(a, b)[:, None] - tolerance), axis=2)  # (r, n)
             for r, i in zip(*np.nonzero(near), strict=True):
                 body, row = bodies[i], rows[r]
-                if body.object not in ends:
-                    depth = _segment_depth(body.built, local(row, i, a[r]),
-                                           local(row, i, b[r]), tolerance, cache, exact)
-                    if depth > tolerance and all(
-                            distance(row, j, p) > tolerance
-                            for j in siblings[body.object] for p in (a[r], b[r])):
-                        out.append(Crossing(int(row), rope.name, body.name, depth))
+                if body.object in ends:
+                    continue
+                la, lb = local(row, i, a[r]), local(row, i, b[r])
+                depth = _segment_depth(body.built, la, lb, tolerance, cache, exact=False)
+                if depth > tolerance and all(
+                        distance(row, j, p) > tolerance
+                        for j in siblings[body.object] for p in (a[r], b[r])):
+                    if exact:  # the deepest point, which the first one found need not be
+                        depth = _segment_depth(body.built, la, lb, tolerance, cache)
+                    out.append(Crossing(int(row), rope.name, body.name, depth))
     return sorted(out, key=lambda c: c.row)
 
 
