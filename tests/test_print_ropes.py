@@ -90,3 +90,20 @@ def test_label_and_parts_list_give_the_length_to_cut(printed):
     assert "rope lift [sheet" in text and "rope tie [sheet" in text
     svg = result.svg.read_text()
     assert 'id="rope-lift"' in svg and 'id="rope-tie"' in svg
+
+
+def test_template_json_gives_each_ropes_length_and_path(tmp_path, capsys):
+    import json
+
+    from rgmcad.cli import main
+    from rgmcad.scene.design_space import values_from_mapping
+    from rgmcad.scene.loader import load_scenario
+
+    assert main(["template", "teapot", "--layout", "solved", "--out", str(tmp_path),
+                 "--json"]) == 0
+    (rope,) = json.loads(capsys.readouterr().out)["ropes"]
+    sc = load_scenario("scenarios/teapot.toml")
+    (expected,) = scene_of(sc, values_from_mapping(sc, sc.layouts["solved"])).ropes
+    assert rope["name"] == "gate_pulley" and rope["length"] == pytest.approx(0.5)
+    assert rope["path_length"] == pytest.approx(expected.initial_length)
+    assert np.allclose(rope["path_world"], expected.points)

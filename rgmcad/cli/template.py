@@ -84,6 +84,8 @@ def run(args) -> int:
                       for p in result.parts],
             "frames": [{"name": f.name, "tolerances": _own(tolerances, f.name),
                         "notes": list(f.notes[1:])} for f in result.frames],
+            "ropes": [{"name": r.name, "length": r.rope.length, "path_length": r.rope.path_length,
+                       "path_world": r.rope.points.tolist()} for r in result.ropes],
             "wall_time": wall,
         }))
         return 0
