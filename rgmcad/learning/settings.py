@@ -185,6 +185,13 @@ class LearningSettings:
         layout wherever it first became "certain"; averaged over errors, it rewards layouts
         that survive them. See docs/decisions.md, "Refinement with COBYLA, averaged over
         placement errors".
+    error_radius : float, default 0.0
+        Added by rgmcad. When positive, the errors the refinement, the ranking of
+        candidates and the final choice by simulation average over are those of global
+        robustness instead of Gaussian placement errors: a radius uniform in ``[0,
+        error_radius]``, a point uniform in the ball of that radius (normalised units),
+        errors that leave the design space left out. At 1 the expected success under them
+        is ``rho_g`` itself. See :mod:`rgmcad.learning.errors`.
     placement_samples : int, default 32
         Number of placement errors (a quasi-random design, rounded up to a power of two)
         when ``placement_noise > 0``.
@@ -265,6 +272,7 @@ class LearningSettings:
     smooth_min_alpha: float = 1.0
     include_certain_events: bool = False
     placement_noise: float = 0.05
+    error_radius: float = 0.0
     placement_samples: int = 32
     optimizer: Literal["cobyla", "auglag", "slsqp"] = "cobyla"
     optimizer_max_eval: int = 400
@@ -319,6 +327,10 @@ class LearningSettings:
             raise ValueError(
                 "LearningSettings.smooth_min_alpha, constraint_tolerance and placement_noise "
                 "must be >= 0"
+            )
+        if not 0.0 <= self.error_radius <= 2.0:
+            raise ValueError(
+                f"LearningSettings.error_radius must lie in [0, 2], got {self.error_radius!r}"
             )
         if self.mi_selection not in ("forward", "marginal"):
             raise ValueError(
