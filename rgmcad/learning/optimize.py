@@ -33,13 +33,14 @@ from dataclasses import dataclass
 import nlopt
 import numpy as np
 
-from .errors import design_from_settings, gaussian_errors
+from .errors import design_from_settings, expected_success, gaussian_errors
 from .factorize import SPDModel
 from .settings import LearningSettings
 
 __all__ = [
     "OptimizationResult",
     "start_point",
+    "start_points",
     "maximize_robustness",
     "placement_offsets",
     "placement_tolerance",
@@ -86,6 +87,20 @@ def start_point(model: SPDModel, X: np.ndarray) -> int:
     """Index of the row of ``X`` (n, d) with the highest predicted success probability
     (the product of the factors; first one on ties)."""
     return int(np.argmax(model.success_proba(np.asarray(X, dtype=float))))
+
+
+def start_points(model: SPDModel, X: np.ndarray, settings: LearningSettings) -> list[int]:
+    """Indices of the ``refine_starts`` rows of ``X`` (n, d) to refine from, best first: the
+    highest predicted success (first one on ties), then the highest expected success under
+    the refinement's errors (:func:`~rgmcad.learning.errors.design_from_settings`)."""
+    X = np.asarray(X, dtype=float)
+    first = start_point(model, X)
+    if settings.refine_starts == 1 or len(X) == 1:
+        return [first]
+    design = design_from_settings(X.shape[1], settings, settings.placement_samples,
+                                  settings.placement_noise)
+    rated = np.argsort(-expected_success(model, X, design), kind="stable")
+    return [first] + [int(i) for i in rated if i != first][: settings.refine_starts - 1]
 
 
 def maximize_robustness(

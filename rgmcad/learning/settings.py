@@ -202,6 +202,11 @@ class LearningSettings:
         penetration. Why COBYLA: see :mod:`rgmcad.learning.optimize`; the measurements are in
         docs/decisions.md, "Refinement with COBYLA, averaged over placement errors". The
         authors used SciPy's SLSQP with finite differences.
+    refine_starts : int, default 1
+        Added by rgmcad. Refinements run, each from an explored valid sample: the one with
+        the highest predicted success (the paper's single start), then those with the
+        highest expected success under the refinement's errors; the best optimum is kept.
+        They cost penetration tests, no simulation.
     optimizer_max_eval : int, default 400
         Cap on objective evaluations of the refinement.
     optimizer_xtol : float, default 1e-4
@@ -275,6 +280,7 @@ class LearningSettings:
     error_radius: float = 0.0
     placement_samples: int = 32
     optimizer: Literal["cobyla", "auglag", "slsqp"] = "cobyla"
+    refine_starts: int = 1
     optimizer_max_eval: int = 400
     optimizer_xtol: float = 1e-4
     optimizer_initial_step: float = 0.05
@@ -294,7 +300,7 @@ class LearningSettings:
             "n_initial", "n_successes", "exploration_batch", "max_draws_factor", "cv_folds",
             "search_halving", "search_min_train",
             "calibration_folds", "active_batch", "mi_neighbors", "optimizer_max_eval",
-            "placement_samples", "verify_candidates",
+            "placement_samples", "verify_candidates", "refine_starts",
         )
         for name in positive_ints:
             value = getattr(self, name)
