@@ -108,7 +108,9 @@ def ball_errors(d: int, radius: float, n: int, levels: int = 8) -> ErrorDesign:
     u = _sobol_midpoints(d + 1, m)
     directions = ndtri(u[:, 1:])
     directions /= np.linalg.norm(directions, axis=1, keepdims=True)
-    level = np.arange(m) % levels
+    # consecutive blocks of Sobol points, each well spread (every 2^k-th point, as i % levels
+    # would pick, shares leading digits: one block of radial fractions and directions)
+    level = np.minimum(np.arange(m) * levels // m, levels - 1)
     eps = radius * (level + 0.5) / levels
     return ErrorDesign(directions * (eps * u[:, 0] ** (1.0 / d))[:, None], level)
 
