@@ -362,7 +362,8 @@ def table_markdown(table: dict) -> str:
     phys = table.get("physics")
     lines = [f"# Benchmark: {table['scenario']}", "",
              f"B = {table['budget_sims']} simulations per method run (every simulation ours "
-             f"ran, its final choice included; validity tests not counted); {len(table['seeds'])} trial(s), seeds {table['seeds'][0]}.."
+             f"ran, its final choice included; validity tests not counted); "
+             f"{len(table['seeds'])} trial(s), seeds {table['seeds'][0]}.."
              f"{table['seeds'][-1]}; rho_l from {table['samples_per_radius']} valid layouts "
              "per radius, 30 radii, common random numbers across methods.", ""]
     if phys:

@@ -335,7 +335,7 @@ def _write_outputs(scenario, store, recorded, result, chosen, wall_time, seed, b
         "simulations_by_stage": {**result.n_simulations,
                                  "verification": chosen["n_simulations"]},
         "verification": chosen["candidates"],
-        "verify_noise": result.settings.verify_noise,
+        "verify_noise": result.settings.verify_noise, "error_radius": result.settings.error_radius,
         "robustness": robustness,
         "successes": int(n_success),
         "discarded": result.n_discarded,
