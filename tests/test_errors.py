@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from rgmcad.learning.errors import ball_errors, expected_success, gaussian_errors
-from rgmcad.learning.oracles import BallRegion, BoxRegion, OracleEvent, ProductOracle
+from rgmcad.learning.oracles import BallRegion, BoxRegion, OracleEvent, ProductOracle, SlabRegion
 from rgmcad.runs.robustness import EPS_GRID, ball_samples
 
 
@@ -79,3 +79,35 @@ def test_designs_are_fixed_and_weights_sum_to_one():
         assert np.all((x + offsets[w > 0] >= 0) & (x + offsets[w > 0] <= 1))
     g = gaussian_errors(5, 0.05, 30)
     assert np.allclose(g.offsets.std(axis=0), 0.05) and np.allclose(g.offsets.mean(axis=0), 0)
+
+
+def two_regions():
+    """Success through either of two alternatives over (x0, x1): a band across the whole
+    square, 0.2 wide, or a disc of radius 0.13 away from it; x2 and x3 do not matter. Under
+    small Gaussian errors (0.05) the disc's centre is the safer point (0.97 against 0.95);
+    under the errors of global robustness the band's is (0.47 against 0.37)."""
+    return ProductOracle(4, {
+        "wide": OracleEvent(dims=(0, 1), region=SlabRegion((1.0, 1.0), 0.6 / np.sqrt(2), 0.1)),
+        "sharp": OracleEvent(dims=(0, 1), region=BallRegion((0.83, 0.83), 0.13)),
+        "end": OracleEvent(parents=("wide", "sharp"), join="any"),
+    })
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_optimising_for_global_robustness_lands_in_the_wide_region(seed):
+    """What a user of `optimize` gets: the layout whose neighbourhood works, not merely a
+    point that works. Both regions are certain at their centres; only the wide one survives
+    large errors, and rho_g (as evaluate measures it) says so."""
+    from rgmcad.learning import LearningSettings, learn_and_optimize, verify_layout
+
+    oracle = two_regions()
+    settings = LearningSettings(
+        n_initial=96, n_successes=24, exploration_batch=8, active_batch=8, active_max_iter=2,
+        svm_C_grid=(1.0, 10.0, 100.0), svm_gamma_grid=(1.0, 10.0), svm_class_weights=(None,),
+        error_radius=1.0, placement_samples=128, verify_samples=64)
+    result = learn_and_optimize(oracle, settings, seed)
+    chosen = verify_layout(result.model, result.x, result.X, result.labels, oracle.simulate,
+                           oracle.validity, settings).chosen.x
+    assert oracle.events["wide"].region.contains(chosen[None, :2])[0]
+    assert rho_g_by_evaluation(oracle, chosen, n=1000) > rho_g_by_evaluation(
+        oracle, np.r_[0.83, 0.83, chosen[2:]], n=1000) + 0.05
