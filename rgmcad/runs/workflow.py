@@ -234,7 +234,7 @@ def _verify(recorded, result) -> dict:
     elif optimum is not Outcome.SUCCESS:
         source = f"{c.source} (the optimum's simulation gave {optimum})"
     else:
-        source = f"{c.source} (more robust than the optimum under placement errors)"
+        source = f"{c.source} (more robust than the optimum under errors)"
     return {"x": c.x, "source": source, "verified": v.verified,
             "is_optimum": c.source == "optimum", "optimum_outcome": optimum.value,
             "n_simulations": v.n_simulations,
