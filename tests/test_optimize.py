@@ -329,3 +329,16 @@ def test_a_simulation_does_not_depend_on_what_the_process_simulated_before():
                            text=True, check=True).stdout
             for seq in ([_BALLRUN_A], [_BALLRUN_B, _BALLRUN_A])]
     assert runs[0] == runs[1]
+
+
+def test_full_learns_one_model_for_the_whole_graph_in_its_own_run_directory(reference, tmp_path):
+    """``rgmcad optimize --full``: the paper's Fig. 16 variant, beside the factorised run."""
+    from rgmcad.learning.factorize import GLOBAL_EVENT
+    from rgmcad.runs.workflow import default_run_dir
+
+    _, factorised = reference
+    assert GLOBAL_EVENT not in factorised["event_probabilities"]
+    full = _optimize(tmp_path / "full", full=True).summary
+    assert list(full["event_probabilities"]) == [GLOBAL_EVENT]
+    assert default_run_dir("simple", "default", 0, full=True).name == "simple-full-s0"
+    assert default_run_dir("simple", "small", 2, 40, full=True).name == "simple-small-b40-full-s2"

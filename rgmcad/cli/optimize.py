@@ -38,6 +38,8 @@ def configure(p: argparse.ArgumentParser) -> None:
                    help="default: the paper's Table 1 settings; small: a quick look")
     p.add_argument("--batch", type=int, metavar="N", help="simulations per exploration batch, "
                    "1 to 10000 (default 10); more keeps more workers busy")
+    p.add_argument("--full", action="store_true", help="one success model for the whole "
+                   "causal graph instead of one per event (the paper's Fig. 16 comparison)")
     add_scheduler_args(p)
     physics.add_robustness_arg(p)
     p.add_argument("--json", action="store_true", help="print one JSON summary on stdout")
@@ -62,7 +64,8 @@ def run(args) -> int:
                                  run_dir=args.run_dir, workers=args.workers,
                                  build_dir=args.build_dir, progress=bar,
                                  parts_dir=parts_dir_arg(args), scheduler=args.scheduler,
-                                 batch=args.batch, **physics.robustness_options(args))
+                                 batch=args.batch, full=args.full,
+                                 **physics.robustness_options(args))
     finally:
         bar.close()
     write_run_report(done.run_dir, args.scenario, build_dir=args.build_dir,

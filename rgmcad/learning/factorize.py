@@ -207,7 +207,8 @@ class SPDModel:
         name = min(probs, key=probs.get)
         return name, probs[name]
 
-    def objective(self, x, offsets: np.ndarray | None = None) -> tuple[float, np.ndarray]:
+    def objective(self, x, offsets: np.ndarray | None = None,
+                  weights: np.ndarray | None = None) -> tuple[float, np.ndarray]:
         """Smooth minimum of the factors' probabilities at ``x`` (d,) and its gradient (d,).
 
         Factors are those of :attr:`objective_events`; with none, the objective is the
@@ -220,10 +221,12 @@ class SPDModel:
             Placement errors: each factor's probability is then averaged over
             ``x + offsets`` (the expected success of the factor when the layout is built
             with those errors) before the smooth minimum.
+        weights : (k,) float, optional
+            Weights of that average (summing to 1; default: equal).
         """
         x = np.asarray(x, dtype=float).reshape(1, -1)
         if self._alternatives:
-            return self._objective_with_alternatives(x, offsets)
+            return self._objective_with_alternatives(x, offsets, weights)
         names = self.objective_events
         if not names:
             return float(self.success_proba(x)[0]), np.zeros(x.shape[1])
@@ -232,11 +235,11 @@ class SPDModel:
         G = np.empty((len(names), x.shape[1]))
         for i, e in enumerate(names):
             p, g = self.models[e].success_proba_and_gradient(P)
-            r[i], G[i] = p.mean(), g.mean(axis=0)
+            r[i], G[i] = _average(p, weights), _average(g, weights)
         s, ds = smooth_min(r, self.alpha)
         return s, ds @ G
 
-    def _objective_with_alternatives(self, x, offsets) -> tuple[float, np.ndarray]:
+    def _objective_with_alternatives(self, x, offsets, weights) -> tuple[float, np.ndarray]:
         """:meth:`objective` over the requirements: a group of alternatives enters as the
         probability that one of them succeeds (its gradient by the chain rule through the
         multilinear group probability)."""
@@ -252,11 +255,16 @@ class SPDModel:
         r = np.empty(len(terms))
         G = np.empty((len(terms), x.shape[1]))
         for i, term in enumerate(terms):
-            r[i] = self.logic.requirement_probability(term, probs).mean()
+            r[i] = _average(self.logic.requirement_probability(term, probs), weights)
             sens = self.logic.requirement_sensitivity(term, probs)
-            G[i] = sum((sens[e][:, None] * grads[e]).mean(axis=0) for e in term.events)
+            G[i] = sum(_average(sens[e][:, None] * grads[e], weights) for e in term.events)
         s, ds = smooth_min(r, self.alpha)
         return s, ds @ G
+
+
+def _average(a: np.ndarray, weights: np.ndarray | None) -> np.ndarray:
+    """Mean of ``a`` over its first axis, weighted when ``weights`` is given."""
+    return a.mean(axis=0) if weights is None else np.tensordot(weights, a, axes=(0, 0))
 
 
 @dataclass(frozen=True)

@@ -3,10 +3,11 @@
 The refinement maximises the smooth minimum of the per-event probabilities
 (:meth:`SPDModel.objective`) over ``[0, 1]^d`` subject to ``penetration(x) <= 0``, starting
 from the sample with the highest predicted success (the product of the factors). By
-default each factor's probability is first averaged over a fixed set of Gaussian placement
-errors (``placement_noise``, see :class:`~rgmcad.learning.settings.LearningSettings`), i.e.
-the expected success of the layout when it is built with such errors; 0 gives the paper's
-objective.
+default each factor's probability is first averaged over a fixed design of errors
+(:mod:`rgmcad.learning.errors`: Gaussian placement errors of ``placement_noise``, or the
+errors of global robustness up to ``error_radius``; see
+:class:`~rgmcad.learning.settings.LearningSettings`), i.e. the expected success of the
+layout when it is built with such errors; no errors give the paper's objective.
 
 The penetration is not differentiable (it is 0 on the whole valid set and grows like a
 distance inside the invalid set), so the constraint is handled by nlopt's derivative-free
@@ -31,15 +32,15 @@ from dataclasses import dataclass
 
 import nlopt
 import numpy as np
-from scipy.special import ndtri
-from scipy.stats import qmc
 
+from .errors import design_from_settings, expected_success, gaussian_errors
 from .factorize import SPDModel
 from .settings import LearningSettings
 
 __all__ = [
     "OptimizationResult",
     "start_point",
+    "start_points",
     "maximize_robustness",
     "placement_offsets",
     "placement_tolerance",
@@ -88,6 +89,20 @@ def start_point(model: SPDModel, X: np.ndarray) -> int:
     return int(np.argmax(model.success_proba(np.asarray(X, dtype=float))))
 
 
+def start_points(model: SPDModel, X: np.ndarray, settings: LearningSettings) -> list[int]:
+    """Indices of the ``refine_starts`` rows of ``X`` (n, d) to refine from, best first: the
+    highest predicted success (first one on ties), then the highest expected success under
+    the refinement's errors (:func:`~rgmcad.learning.errors.design_from_settings`)."""
+    X = np.asarray(X, dtype=float)
+    first = start_point(model, X)
+    if settings.refine_starts == 1 or len(X) == 1:
+        return [first]
+    design = design_from_settings(X.shape[1], settings, settings.placement_samples,
+                                  settings.placement_noise)
+    rated = np.argsort(-expected_success(model, X, design), kind="stable")
+    return [first] + [int(i) for i in rated if i != first][: settings.refine_starts - 1]
+
+
 def maximize_robustness(
     model: SPDModel,
     penetration: PenetrationFn,
@@ -122,9 +137,7 @@ def maximize_robustness(
         raise ValueError(f"unknown optimizer {method!r}; valid: {sorted(_ALGORITHMS)}")
     x0 = np.clip(np.asarray(x0, dtype=float).reshape(-1), 0.0, 1.0)
     d = len(x0)
-    offsets = None
-    if s.placement_noise > 0:
-        offsets = placement_offsets(d, s.placement_noise, s.placement_samples)
+    design = design_from_settings(d, s, s.placement_samples, s.placement_noise)
     pen_cache: dict[bytes, float] = {}
     best = {"x": None, "f": -np.inf}
     n_eval = 0
@@ -138,7 +151,16 @@ def maximize_robustness(
     def objective(x, grad):
         nonlocal n_eval
         n_eval += 1
-        f, g = model.objective(x, offsets)
+        if design is None:
+            f, g = model.objective(x)
+        elif design.rejects_outside:  # the errors of the ball that keep x in the cube
+            offsets, raw = design.at(x)
+            w = design.normalized(raw)
+            keep = w > 0
+            f, g = (model.objective(x, offsets[keep], w[keep]) if keep.any()
+                    else model.objective(x))
+        else:
+            f, g = model.objective(x, design.offsets)
         if grad.size > 0:
             grad[:] = g
         if f > best["f"] and pen(x) <= 0.0:
@@ -205,10 +227,7 @@ def placement_offsets(d: int, sigma: float, n: int) -> np.ndarray:
     then a permutation of the m stratified normal quantiles, rescaled so that its mean is 0
     and its standard deviation exactly ``sigma``.
     """
-    m = 2 ** int(np.ceil(np.log2(max(n, 2))))
-    u = qmc.Sobol(d, scramble=False).random(m) + 0.5 / m
-    z = ndtri(u)
-    return sigma * z / z.std(axis=0)
+    return gaussian_errors(d, sigma, n).offsets
 
 
 _STATUS = {

@@ -18,7 +18,7 @@ import numpy as np
 
 from .dimensions import EventAnalysis
 from .factorize import SPDModel, fit_spd
-from .optimize import OptimizationResult, maximize_robustness, placement_tolerance, start_point
+from .optimize import OptimizationResult, maximize_robustness, placement_tolerance, start_points
 from .oracles import Label, Problem
 from .sampling import explore
 from .settings import LearningSettings
@@ -175,8 +175,9 @@ def learn_and_optimize(
     1. Exploration (Alg. 1): Sobol points, then mixtures around the most successful samples.
     2. Success model: factorised per event with active learning on each subspace (section
        6), or one global model when ``settings.factorized`` is False.
-    3. Start at the explored sample with the highest predicted success; maximise the smooth
-       minimum of the factors subject to ``penetration(x) <= 0`` (section 7).
+    3. Start at the explored sample with the highest predicted success (and, with
+       ``refine_starts`` > 1, at the next best too); maximise the smooth minimum of the
+       factors subject to ``penetration(x) <= 0`` (section 7); keep the best optimum.
     4. Placement tolerances at the optimum.
 
     Parameters
@@ -229,9 +230,14 @@ def learn_and_optimize(
             "exploration found no valid design vector; check problem.validity or widen the "
             "design space"
         )
-    i0 = valid_rows[start_point(model, X_explored[valid_rows])]
-    x0 = X_explored[i0]
-    opt = maximize_robustness(model, problem.penetration, x0, settings)
+    rows = start_points(model, X_explored[valid_rows], settings)
+    x0 = X_explored[valid_rows[rows[0]]]
+    opt = None
+    for row in rows:  # the refinement costs no simulation: several starts are cheap
+        found = maximize_robustness(model, problem.penetration,
+                                    X_explored[valid_rows[row]], settings)
+        if opt is None or found.objective > opt.objective:
+            opt = found
     report("optimization", f"objective {opt.objective_start:.4f} -> {opt.objective:.4f}")
 
     x = opt.x

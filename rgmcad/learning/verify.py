@@ -4,11 +4,13 @@ under placement errors, keep the one that works most often.
 The refinement (section 7) maximises a *model's* prediction; the model can be confidently
 wrong where it has few samples, and then the optimum fails or works only at the exact point.
 So the final choice is made by the simulator: each candidate (the optimum, and the simulated
-global successes the model rates highest) must succeed itself, and is then simulated at
-``verify_samples`` placement errors (the fixed Gaussian design of
-:func:`~rgmcad.learning.optimize.placement_offsets`, standard deviation ``verify_noise``;
-copies outside the design space are clipped onto it, invalid copies are left out). The
-candidate with the highest success rate among its valid copies wins; ties go to the
+global successes the model rates highest under the refinement's errors) must succeed
+itself, and is then simulated at ``verify_samples`` errors of a fixed design
+(:mod:`rgmcad.learning.errors`, the same for every candidate): Gaussian placement errors of
+standard deviation ``verify_noise``, copies outside the design space clipped onto it; or,
+with ``error_radius`` > 0, the errors of global robustness, kept in the design space with
+their importance weights. Invalid copies are left out. The candidate with the highest success rate among its
+valid copies (per radius, then averaged over radii, for ball errors) wins; ties go to the
 earlier candidate, so the optimum first. With ``verify_samples = 0`` the choice is the
 paper's: the optimum if it succeeds, else the best predicted simulated success.
 """
@@ -20,8 +22,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .errors import design_from_settings, expected_success
 from .factorize import SPDModel
-from .optimize import placement_offsets
 from .oracles import Label
 from .settings import LearningSettings
 
@@ -114,8 +116,12 @@ def verify_layout(
     optimum = Candidate(x_opt, "optimum", outcome(own))
     n_sims = 1
 
+    d = len(x_opt)
     successes = [i for i, lab in enumerate(labels) if lab.success and not np.array_equal(X[i], x_opt)]
-    order = np.argsort(-model.success_proba(X[successes]), kind="stable") if successes else []
+    rating = design_from_settings(d, settings, settings.placement_samples,
+                                  settings.placement_noise)
+    order = (np.argsort(-expected_success(model, X[successes], rating), kind="stable")
+             if successes else [])
     n_alternatives = settings.verify_candidates - (1 if own.success else 0)
     candidates = ([optimum] if own.success else []) + [
         Candidate(X[successes[k]], f"simulated sample #{successes[k]}", "success")
@@ -126,16 +132,23 @@ def verify_layout(
     if settings.verify_samples == 0 or len(candidates) == 1:
         return Verification(candidates[0], True, optimum, (), n_sims)
 
-    offsets = placement_offsets(len(x_opt), settings.verify_noise, settings.verify_samples)
-    copies = [np.clip(c.x + offsets, 0.0, 1.0) for c in candidates]
-    P = np.vstack(copies)
-    ok = np.asarray(validity(P), dtype=bool)
+    design = design_from_settings(d, settings, settings.verify_samples, settings.verify_noise)
+    errors = [design.at(c.x) for c in candidates]
+    # Gaussian copies outside the design space are clipped onto it; ball copies are kept
+    # inside by design.at (raw weight 0 for the few it cannot)
+    P = np.vstack([np.clip(c.x + offsets, 0.0, 1.0) for c, (offsets, _) in
+                   zip(candidates, errors, strict=True)])
+    raw = np.concatenate([r for _, r in errors])
+    ok = raw > 0
+    ok[ok] = np.asarray(validity(P[ok]), dtype=bool)  # invalid copies are left out
     results = iter(simulate(P[ok]))
     n_sims += int(ok.sum())
     tested = []
-    for c, block_ok in zip(candidates, np.split(ok, len(candidates)), strict=True):
-        wins = [next(results).success for _ in range(int(block_ok.sum()))]
-        rate = float(np.mean(wins)) if wins else 0.0
-        tested.append(Candidate(c.x, c.source, c.outcome, rate, len(wins)))
+    for c, block_ok, block_raw in zip(candidates, np.split(ok, len(candidates)),
+                                      np.split(raw, len(candidates)), strict=True):
+        wins = np.zeros(len(block_ok))
+        wins[block_ok] = [next(results).success for _ in range(int(block_ok.sum()))]
+        rate = float(design.normalized(block_raw * block_ok) @ wins)
+        tested.append(Candidate(c.x, c.source, c.outcome, rate, int(block_ok.sum())))
     best = max(range(len(tested)), key=lambda k: (tested[k].success_rate, -k))
     return Verification(tested[best], True, optimum, tuple(tested), n_sims)

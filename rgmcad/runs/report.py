@@ -69,10 +69,13 @@ def report_markdown(scenario, s: dict, low, high) -> str:
                      f"{up * k:.2f} | [{low[j] * k:.2f}, {high[j] * k:.2f}] |")
     if s.get("verification"):
         lines += ["", "## Choice of the layout", "",
-                  "Each candidate succeeded in simulation; then it was simulated at placement "
-                  "errors (Gaussian, standard deviation "
-                  f"{s['verify_noise']:g} of each range) and the one that succeeded most often "
-                  "was kept.", "", "| candidate | success under errors | valid copies |",
+                  "Each candidate succeeded in simulation; then it was simulated at "
+                  + (f"the errors of global robustness (every radius up to {radius:g} of the "
+                     "normalised design space, as rho_g weighs them)" if (radius := s.get(
+                         "error_radius")) else "placement errors (Gaussian, standard "
+                     f"deviation {s['verify_noise']:g} of each range)")
+                  + " and the one that succeeded most often was kept.", "",
+                  "| candidate | success under errors | valid copies |",
                   "|---|---|---|"]
         for c in s["verification"]:
             lines.append(f"| {c['source']} | {c['success_rate']:.2f} | {c['valid_copies']} |")

@@ -36,12 +36,7 @@ from rgmcad.runs.checks import (
     check_workers,
 )
 from rgmcad.runs.executor import make_executor, map_blocks, scheduler_from_env
-from rgmcad.runs.problem import (
-    ScenarioProblem,
-    SimRecord,
-    scenario_digest,
-    validity_task,
-)
+from rgmcad.runs.problem import ScenarioProblem, SimRecord, scenario_digest, validity_task
 from rgmcad.runs.report import (
     PROGRESS_PLOT,
     REPORT_FILE,
@@ -109,11 +104,13 @@ class OptimizationRun:
         return bool(self.summary["verified"])
 
 
-def default_run_dir(scenario_name: str, budget: str, seed: int, batch: int | None = None) -> Path:
+def default_run_dir(scenario_name: str, budget: str, seed: int, batch: int | None = None,
+                    full: bool = False) -> Path:
     """``runs/SCENARIO-sSEED``, or ``runs/SCENARIO-BUDGET-sSEED`` for another budget, with
-    ``-bN`` before ``-sSEED`` for an exploration batch of N set by ``--batch``."""
+    ``-bN`` (an exploration batch of N set by ``--batch``) and ``-full`` (one model, ``--full``)
+    before ``-sSEED``."""
     tag = "" if budget == "default" else f"-{budget}"
-    tag += "" if batch is None else f"-b{batch}"
+    tag += ("" if batch is None else f"-b{batch}") + ("-full" if full else "")
     return Path("runs") / f"{scenario_name}{tag}-s{seed}"
 
 
@@ -125,6 +122,7 @@ def optimize_scenario(
     parts_dir: str | Path | None = None, scheduler: str | None = None,
     batch: int | None = None, robustness_samples: int = 0,
     physics: PhysicsRanges | None = DEFAULT_PHYSICS, physics_noise: PhysicsRanges | None = None,
+    full: bool = False,
 ) -> OptimizationRun:
     """Optimise a scenario's layout in a run directory, or continue an interrupted run there.
 
@@ -157,6 +155,7 @@ def optimize_scenario(
     physics_noise : every learning (and verification) simulation with its own physical
         draw of these ranges (noisy labels: the model learns the success probability under
         physical errors); part of the run's identity, ``-physics`` ends the default directory.
+    full : one success model for the whole graph (``factorized=False``; paper Fig. 16).
     """
     start = time.perf_counter()
     from rgmcad.learning.settings import budget as budget_settings
@@ -167,6 +166,7 @@ def optimize_scenario(
     check_workers(workers, "workers")
     scenario = load_scenario(scenario_path, parts_dir=parts_dir)
     settings = budget_settings(budget) if settings is None else settings
+    settings = settings.replace(factorized=False) if full else settings
     given = run_dir is not None
     if batch is not None:
         check_range(batch, 1, MAX_BATCH, "batch", "a number of simulations per batch")
@@ -177,7 +177,7 @@ def optimize_scenario(
     if physics_noise is not None:  # noisy labels: another run
         identity["physics_noise"] = physics_noise.to_json()
     tag = "" if physics_noise is None else "-physics"
-    run_dir = Path(run_dir) if run_dir else default_run_dir(scenario.name, budget, seed, batch)
+    run_dir = Path(run_dir) if run_dir else default_run_dir(scenario.name, budget, seed, batch, full)
     run_dir = run_dir.with_name(run_dir.name + tag) if tag and not given else run_dir
     with RunStore(run_dir, identity, dimension=len(scenario.free),
                   events=list(scenario.events)) as store:
@@ -234,7 +234,7 @@ def _verify(recorded, result) -> dict:
     elif optimum is not Outcome.SUCCESS:
         source = f"{c.source} (the optimum's simulation gave {optimum})"
     else:
-        source = f"{c.source} (more robust than the optimum under placement errors)"
+        source = f"{c.source} (more robust than the optimum under errors)"
     return {"x": c.x, "source": source, "verified": v.verified,
             "is_optimum": c.source == "optimum", "optimum_outcome": optimum.value,
             "n_simulations": v.n_simulations,
@@ -279,10 +279,6 @@ def _readable_json(path: Path) -> bool:
         return False
 
 
-def _write_json(path: Path, data) -> Path:
-    return write_json_atomic(path, data)
-
-
 def _write_outputs(scenario, store, recorded, result, chosen, wall_time, seed, budget,
                    robustness=None) -> dict:
     from rgmcad.scene.design_space import bounds
@@ -299,11 +295,11 @@ def _write_outputs(scenario, store, recorded, result, chosen, wall_time, seed, b
                   for j, f in enumerate(scenario.free)}
     spread = influence(model, x)
     store.save_model(model)
-    layout = _write_json(run_dir / LAYOUT_FILE, layout_document(
+    layout = write_json_atomic(run_dir / LAYOUT_FILE, layout_document(
         scenario, x, probability=probability, event_probabilities=per_event,
         weakest_event=weakest, tolerances=tolerances, source=chosen["source"],
         verified=chosen["verified"]))
-    start = _write_json(run_dir / START_FILE, layout_document(
+    start = write_json_atomic(run_dir / START_FILE, layout_document(
         scenario, result.x_start, probability=float(result.probability_start),
         source="the explored sample with the highest predicted success (start of the "
                "refinement)"))
@@ -339,7 +335,7 @@ def _write_outputs(scenario, store, recorded, result, chosen, wall_time, seed, b
         "simulations_by_stage": {**result.n_simulations,
                                  "verification": chosen["n_simulations"]},
         "verification": chosen["candidates"],
-        "verify_noise": result.settings.verify_noise,
+        "verify_noise": result.settings.verify_noise, "error_radius": result.settings.error_radius,
         "robustness": robustness,
         "successes": int(n_success),
         "discarded": result.n_discarded,
