@@ -94,6 +94,7 @@ class World:
                 deterministicOverlappingPairs=1,
                 enableSAT=0,
                 enableFileCaching=1,
+                solverResidualThreshold=settings.solver_residual_threshold,
             )
             self.handles: dict[str, Handle] = {}
             self._build()
