@@ -400,6 +400,20 @@ class World:
 
         return read
 
+    def frame_reader(self, name: str):
+        """A function returning the world position (x, y, z) and (x, y, z, w) quaternion of the
+        body's centre-of-mass frame now (:attr:`Handle.com_to_part` leads to its part frame)."""
+        h, cid = self.handles[name], self.cid
+        if h.link < 0:  # pybullet's own function: no Python frame of ours per call
+            return functools.partial(pb.getBasePositionAndOrientation, h.uid, cid)
+        get_state, uid, link = pb.getLinkState, h.uid, h.link
+
+        def read():
+            state = get_state(uid, link, 0, 0, cid)
+            return state[0], state[1]
+
+        return read
+
     def point_reader(self, name: str, point):
         """A function returning the world position (x, y, z) of ``point`` (3,), a point fixed
         in the body's part frame."""
