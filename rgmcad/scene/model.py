@@ -156,7 +156,7 @@ class SimulationSettings:
     small fast bodies, which the paper's engine lacked. ``solver_residual_threshold``: the
     solver stops iterating once the sum of squared impulse changes of an iteration is below it
     (pybullet's default; larger values save 5-15 % on large scenes and move outcomes,
-    docs/decisions.md, "Engine settings for TEAPOT").
+    docs/decisions.md, "Simulating at the physics floor, second pass").
     """
 
     timestep: float = 0.002
