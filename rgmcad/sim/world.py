@@ -381,25 +381,6 @@ class World:
 
         return read
 
-    def up_reader(self, name: str, direction) -> callable:
-        """A function returning the world z component of ``direction`` (3,), a unit vector fixed
-        in the body's part frame: the cosine of its angle to the vertical."""
-        h, cid = self.handles[name], self.cid
-        direction = tuple((h.com_to_part[:3, :3] @ np.asarray(direction, float)).tolist())
-        # through the rotation of the centre-of-mass frame, one call deep: it runs every step
-        if h.link < 0:
-            get_pose, uid = pb.getBasePositionAndOrientation, h.uid
-
-            def read():
-                return rotated_z(get_pose(uid, cid)[1], direction)
-        else:
-            get_state, uid, link = pb.getLinkState, h.uid, h.link
-
-            def read():
-                return rotated_z(get_state(uid, link, 0, 0, cid)[1], direction)
-
-        return read
-
     def frame_reader(self, name: str):
         """A function returning the world position (x, y, z) and (x, y, z, w) quaternion of the
         body's centre-of-mass frame now (:attr:`Handle.com_to_part` leads to its part frame)."""
@@ -407,31 +388,27 @@ class World:
         if h.link < 0:  # pybullet's own function: no Python frame of ours per call
             return functools.partial(pb.getBasePositionAndOrientation, h.uid, cid)
         get_state, uid, link = pb.getLinkState, h.uid, h.link
+        return lambda: get_state(uid, link, 0, 0, cid)[:2]
 
-        def read():
-            state = get_state(uid, link, 0, 0, cid)
-            return state[0], state[1]
-
-        return read
+    def up_reader(self, name: str, direction) -> callable:
+        """A function returning the world z component of ``direction`` (3,), a unit vector fixed
+        in the body's part frame: the cosine of its angle to the vertical."""
+        h = self.handles[name]
+        direction = tuple((h.com_to_part[:3, :3] @ np.asarray(direction, float)).tolist())
+        frame = self.frame_reader(name)  # through the rotation of the centre-of-mass frame
+        return lambda: rotated_z(frame()[1], direction)
 
     def point_reader(self, name: str, point):
         """A function returning the world position (x, y, z) of ``point`` (3,), a point fixed
         in the body's part frame."""
-        h, cid = self.handles[name], self.cid
+        h = self.handles[name]
         point = tuple((h.com_to_part[:3, :3] @ np.asarray(point, float)
                        + h.com_to_part[:3, 3]).tolist())
-        if h.link < 0:
-            get_pose, uid = pb.getBasePositionAndOrientation, h.uid
+        frame = self.frame_reader(name)
 
-            def read():
-                position, orientation = get_pose(uid, cid)
-                return moved_point(position, orientation, point)
-        else:
-            get_state, uid, link = pb.getLinkState, h.uid, h.link
-
-            def read():
-                state = get_state(uid, link, 0, 0, cid)
-                return moved_point(state[0], state[1], point)
+        def read():
+            position, orientation = frame()
+            return moved_point(position, orientation, point)
 
         return read
 
