@@ -160,6 +160,17 @@ def moved_point(position, quaternion, point) -> tuple[float, float, float]:
             + (1 - 2 * (x * x + y * y)) * c)
 
 
+def point_in_frame(position, quaternion, point) -> tuple[float, float, float]:
+    """A world ``point`` (3 floats) in the frame at a pybullet position and (x, y, z, w)
+    quaternion: the inverse of :func:`moved_point`. Plain floats, for per-step readers."""
+    px, py, pz = point
+    x, y, z, w = quaternion
+    dx, dy, dz = px - position[0], py - position[1], pz - position[2]
+    return ((1 - 2 * (y * y + z * z)) * dx + 2 * (x * y + z * w) * dy + 2 * (x * z - y * w) * dz,
+            2 * (x * y - z * w) * dx + (1 - 2 * (x * x + z * z)) * dy + 2 * (y * z + x * w) * dz,
+            2 * (x * z + y * w) * dx + 2 * (y * z - x * w) * dy + (1 - 2 * (x * x + y * y)) * dz)
+
+
 def transform_points(matrix: np.ndarray, points: np.ndarray) -> np.ndarray:
     """Apply a (4, 4) transform to (n, 3) points."""
     return points @ matrix[:3, :3].T + matrix[:3, 3]

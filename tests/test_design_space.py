@@ -48,3 +48,16 @@ def test_pose_matrix_round_trip(pose):
 def test_rotation_convention_positive_roll_lowers_plus_x():
     m = pose_matrix((0, 0, 0, 0, 0, 90))
     assert np.allclose(m[:3, :3] @ [1, 0, 0], [0, 0, -1])
+
+
+def test_a_point_moved_into_a_frame_and_back_is_where_it_was():
+    from rgmcad.geometry import moved_point, point_in_frame, pose_matrix, to_pybullet
+
+    rng = np.random.default_rng(4)
+    for _ in range(20):
+        pose = pose_matrix([*rng.normal(size=3), *rng.uniform(-180, 180, 3)])
+        position, quaternion = to_pybullet(pose)
+        point = rng.normal(size=3).tolist()
+        local = point_in_frame(position, quaternion, point)
+        assert np.allclose(local, (np.linalg.inv(pose) @ np.append(point, 1.0))[:3], atol=1e-12)
+        assert np.allclose(moved_point(position, quaternion, local), point, atol=1e-12)

@@ -1,5 +1,7 @@
 """Every event type, in a tiny world where it must succeed and one where it must fail."""
 
+import math
+
 import numpy as np
 import pytest
 from _support import run, scene_of, tiny
@@ -255,3 +257,18 @@ def test_every_event_type_a_scenario_may_name_has_a_condition_and_no_other():
     from rgmcad.sim.events import EVENTS
 
     assert set(EVENTS) == set(EVENT_TYPES)
+
+
+@pytest.mark.parametrize(("offset", "outcome"), [(0.0, "success"), (0.05, "failure")])
+def test_inclusion_in_a_free_turned_cup(offset, outcome):
+    """A cup that can move (it has a mass), turned and away from the origin: a ball dropped
+    on its centre ends inside it, one dropped 5 cm off its centre along the cup's own x axis
+    lands beside it."""
+    heading = math.radians(30)
+    cup = {**CUP, "mass": 0.05, "pose": {"x": 0.2, "y": 0.1, "z": 0.02, "heading": 30}}
+    ball = ball_at(0.12, pose={"x": 0.2 + offset * math.cos(heading),
+                               "y": 0.1 + offset * math.sin(heading)})
+    event = {"type": "inclusion", "inside": "ball", "container": "cup"}
+    result = run(tiny({"floor": FLOOR, "cup": cup, "ball": ball}, {"e": event}, duration=1.5,
+                      event_timeout=1.0))
+    assert result.outcome.value == outcome, result

@@ -176,3 +176,26 @@ def test_a_hinged_body_is_where_its_pose_says_after_every_step():
             hit = pb.rayTest(start.tolist(), end.tolist(), physicsClientId=world.cid)[0]
             assert hit[0] == world.handles["a"].uid
             assert np.linalg.norm(np.asarray(hit[3]) - tip) < 1e-6
+
+
+def test_the_solver_residual_threshold_of_a_scenario_file_reaches_the_engine():
+    """``[simulation] solver_residual_threshold``: a file without the key gets the default
+    (1e-7, pybullet's own); a threshold every iteration meets stops the solver after its first
+    iteration, and the ball and dominoes move differently."""
+    import tomllib
+    from pathlib import Path
+
+    from rgmcad.scene.loader import parse_scenario
+
+    data = tomllib.loads(Path("scenarios/simple.toml").read_text())
+
+    def final_poses(**simulation):
+        sc = parse_scenario({**data, "simulation": {**data["simulation"], **simulation}},
+                            where="<test>", path=Path("scenarios/simple.toml"))
+        with World(scene_of(sc, values_from_mapping(sc, sc.layouts["solved"])),
+                   sc.settings) as world:
+            return _trajectory(world, 400)[-1]
+
+    plain = final_poses()
+    assert np.array_equal(final_poses(solver_residual_threshold=1e-7), plain)
+    assert not np.array_equal(final_poses(solver_residual_threshold=1.0), plain)

@@ -51,7 +51,34 @@ def no_ccd(world):
         pb.changeDynamics(uid, -1, ccdSweptSphereRadius=0, physicsClientId=world.cid)
 
 
-VARIANTS = {"today": None, "sleep": sleep, "residual": residual, "no_ccd": no_ccd}
+def _each_link(world, **dynamics):
+    for uid in _bodies(world):
+        for link in range(-1, pb.getNumJoints(uid, physicsClientId=world.cid)):
+            pb.changeDynamics(uid, link, **dynamics, physicsClientId=world.cid)
+
+
+def sleep_slow(world):
+    """Sleeping only for bodies slower than 1 cm/s and 0.01 rad/s for 2 s."""
+    _each_link(world, activationState=pb.ACTIVATION_STATE_ENABLE_SLEEPING, sleepThreshold=0.01)
+
+
+def no_speculative(world):
+    """Contact points farther apart than 0 m are not handed to the solver."""
+    _each_link(world, contactProcessingThreshold=0.0)
+
+
+def split(world):
+    pb.setPhysicsEngineParameter(useSplitImpulse=1, physicsClientId=world.cid)
+
+
+def islands(world):
+    """Islands solved one by one (no batching of small islands)."""
+    pb.setPhysicsEngineParameter(minimumSolverIslandSize=1, physicsClientId=world.cid)
+
+
+VARIANTS = {"today": None, "sleep": sleep, "sleep_slow": sleep_slow, "residual": residual,
+            "no_ccd": no_ccd, "no_speculative": no_speculative, "split": split,
+            "islands": islands}
 
 
 class _Patched(world_module.World):
@@ -68,7 +95,9 @@ def main() -> None:
     parser.add_argument("--scenarios", nargs="*", default=["causality_switch", "simple"])
     parser.add_argument("--layouts", type=int, default=20)
     parser.add_argument("--seed", type=int, default=15)
+    parser.add_argument("--variants", nargs="*", default=list(VARIANTS))
     args = parser.parse_args()
+    variants = {v: VARIANTS[v] for v in ["today", *args.variants] if v in VARIANTS}
     import rgmcad.sim.run as run_module
 
     run_module.World = _Patched
@@ -82,13 +111,13 @@ def main() -> None:
             values = values_from_vector(scenario, rng.random(scenario.dimension))
             if check_validity(make_scene(scenario, values, parts), cache=cache).valid:
                 layouts.append(values)
-        cpu = dict.fromkeys(VARIANTS, 0.0)
-        moved = dict.fromkeys(VARIANTS, 0)
-        outcome_moved = dict.fromkeys(VARIANTS, 0)
+        cpu = dict.fromkeys(variants, 0.0)
+        moved = dict.fromkeys(variants, 0)
+        outcome_moved = dict.fromkeys(variants, 0)
         solved = {}
         for k, values in enumerate(layouts):
             results = {}
-            for v, fn in VARIANTS.items():
+            for v, fn in variants.items():
                 _Patched.variant = fn
                 start = time.process_time()
                 results[v] = simulate(scenario, values, parts, check=False, engine=engine,
@@ -100,7 +129,7 @@ def main() -> None:
                 moved[v] += r.events != results["today"].events
                 outcome_moved[v] += r.outcome != results["today"].outcome
         n = len(layouts)
-        for v in VARIANTS:
+        for v in variants:
             print(f"{name:17s} {v:9s} {cpu[v] / n * 1e3:7.1f} ms/sim ({cpu[v] / cpu['today']:.2f}x)"
                   f" | events moved {moved[v]}/{n}, outcome moved {outcome_moved[v]}/{n}"
                   f" | solved: {solved[v]}", flush=True)

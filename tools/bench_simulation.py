@@ -6,9 +6,10 @@ simulation, the time inside pybullet's stepSimulation, the overhead (world build
 event checks, bookkeeping) as a share of the stepping time, and simulations per second on one
 core. Simulations share one engine (without pybullet's renderer) and one part cache, as in a
 worker process; the stepping time (the physics floor) is that of as many raw steps of the same
-world. Also times
-the validity test on a 50-body scene, and what a simulation given no engine pays for its
-own (connecting and disconnecting a pybullet client).
+world. The same two figures are also given in CPU time (`time.process_time`), which other
+processes on a shared machine do not inflate. Also times the validity test on a 50-body
+scene, and what a simulation given no engine pays for its own (connecting and disconnecting a
+pybullet client).
 
     uv run python tools/bench_simulation.py [--repeat 5] [--scenarios long_chain,teapot]
 """
@@ -44,15 +45,19 @@ def bench_scenario(path: Path, repeat: int, args_valid: int, engine: Engine) -> 
         if len(layouts) == 1 + args_valid:
             break
     simulate(scenario, layouts[0], parts, engine=engine, cache=cache)  # warm the cache
-    wall = step = valid = build = 0.0
+    wall = step = valid = build = cpu = cpu_step = 0.0
     n = sim = 0
     for _ in range(repeat):
         for values in layouts:
+            start = time.process_time()
             r = simulate(scenario, values, parts, engine=engine, cache=cache)
             if r.outcome.value == "invalid":
                 continue
+            cpu += time.process_time() - start
             wall += r.wall_time
-            step += _stepping(scenario, values, parts, r.steps, engine, cache)
+            seconds, cpu_seconds = _stepping(scenario, values, parts, r.steps, engine, cache)
+            step += seconds
+            cpu_step += cpu_seconds
             valid += r.validity_time
             build += r.build_time
             sim += r.sim_time
@@ -63,18 +68,20 @@ def bench_scenario(path: Path, repeat: int, args_valid: int, engine: Engine) -> 
           f"{step / n * 1e3:7.1f} | validity {valid / n * 1e3:5.1f} | build {build / n * 1e3:5.1f}"
           f" | events+loop {per_step / n * 1e3:6.1f} ms ({per_step / step * 100:4.0f} %) | all "
           f"but stepping {overhead / step * 100:5.1f} % | {n / wall:5.1f} sim/s "
-          f"{sim / wall:5.1f}x real time")
+          f"{sim / wall:5.1f}x real time | CPU {cpu / n * 1e3:7.1f} ms/sim, stepping "
+          f"{cpu_step / n * 1e3:7.1f}", flush=True)
 
 
-def _stepping(scenario, values, parts, steps: int, engine: Engine, cache: PartCache) -> float:
-    """Seconds of the simulation's physics steps alone: as many raw steps of the same world
-    (the simulation itself reads no clock per step)."""
+def _stepping(scenario, values, parts, steps: int, engine: Engine,
+              cache: PartCache) -> tuple[float, float]:
+    """Wall and CPU seconds of the simulation's physics steps alone: as many raw steps of the
+    same world (the simulation itself reads no clock per step)."""
     with World(make_scene(scenario, values, parts), scenario.settings, engine, cache) as world:
         step, cid = pb.stepSimulation, world.cid
-        start = time.perf_counter()
+        start, cpu = time.perf_counter(), time.process_time()
         for _ in range(steps):
             step(cid)
-        return time.perf_counter() - start
+        return time.perf_counter() - start, time.process_time() - cpu
 
 
 def bench_validity() -> None:

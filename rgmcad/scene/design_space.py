@@ -67,17 +67,19 @@ def world_poses_many(scenario: Scenario, values) -> dict[str, np.ndarray]:
     """(n, 4, 4) world transforms of every object (frames included) for n layouts of real
     ``values`` (n, d); children compose their parent-relative pose onto their parent's."""
     values = np.atleast_2d(np.asarray(values, float))
-    local6 = {name: np.repeat(np.asarray(obj.pose, float)[None], len(values), axis=0)
-              for name, obj in scenario.objects.items()}
+    row = {name: i for i, name in enumerate(scenario.objects)}
+    # every object's local pose in every layout, made in one vectorised call
+    local6 = np.repeat(np.array([obj.pose for obj in scenario.objects.values()], float)[:, None],
+                       len(values), axis=1)
     for i, f in enumerate(scenario.free):
-        local6[f.object][:, POSE_KEYS.index(f.component)] = values[:, i]
+        local6[row[f.object], :, POSE_KEYS.index(f.component)] = values[:, i]
+    local = pose_matrices(local6.reshape(-1, 6)).reshape(len(row), len(values), 4, 4)
     world: dict[str, np.ndarray] = {}
 
     def resolve(name):
         if name not in world:
             parent = scenario.objects[name].parent
-            local = pose_matrices(local6[name])
-            world[name] = local if parent is None else resolve(parent) @ local
+            world[name] = local[row[name]] if parent is None else resolve(parent) @ local[row[name]]
         return world[name]
 
     for name in scenario.objects:

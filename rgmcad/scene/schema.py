@@ -229,6 +229,7 @@ SIMULATION = {
     "restitution_velocity_threshold": Number("m/s", 0, 100),
     "convex_margin": Number("m", 0, 0.1, open_low=True),
     "ccd": Flag(),
+    "solver_residual_threshold": Number("N^2 s^2", 0, 1),
 }
 """``[simulation]``: one spec per field of :class:`~rgmcad.scene.model.SimulationSettings`."""
 

@@ -69,6 +69,8 @@ class CausalGraph:
         self.woke: dict[str, float] = {}
         self._true_since: dict[str, float] = {}
         self.awake: list[str] = []
+        # what a sweep reads of each awake event, rebuilt as events wake and finish
+        self._watch: tuple[tuple[str, Callable[[], bool], float, float], ...] = ()
         self.root = next(n for n, s in events.items() if not s.after)
         self.started = False
 
@@ -85,20 +87,24 @@ class CausalGraph:
             self.started = True
             self._wake(self.root, t)
             return not self.awake
-        conditions, woke, timeouts = self.conditions, self.woke, self.timeouts
         true_since = self._true_since
         # over a snapshot: events woken during the sweep were evaluated as they woke, and only
         # its own evaluation finishes an event
-        for name in tuple(self.awake):
-            holds = conditions[name]()
-            if holds or name in true_since or t - woke[name] > timeouts[name]:
+        for name, condition, woke, timeout in self._watch:
+            holds = condition()
+            if holds or name in true_since or t - woke > timeout:
                 self._apply(name, t, holds)
         return not self.awake
+
+    def _rewatch(self) -> None:
+        self._watch = tuple((n, self.conditions[n], self.woke[n], self.timeouts[n])
+                            for n in self.awake)
 
     def _wake(self, name: str, t: float) -> None:
         self.state[name] = AWAKE
         self.woke[name] = t
         self.awake.append(name)
+        self._rewatch()
         self._apply(name, t, self.conditions[name]())
 
     def _apply(self, name: str, t: float, holds: bool) -> None:
@@ -133,6 +139,7 @@ class CausalGraph:
         self.state[name] = state
         self.time[name] = t
         self.awake.remove(name)
+        self._rewatch()
 
     def succeeded(self) -> bool:
         """True when every leaf event succeeded."""

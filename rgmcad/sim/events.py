@@ -39,7 +39,7 @@ from collections.abc import Callable
 import numpy as np
 from scipy.spatial import ConvexHull
 
-from rgmcad.geometry import invert
+from rgmcad.geometry import invert, point_in_frame
 from rgmcad.scene.eventspec import ENDS, Negation
 from rgmcad.scene.model import EventSpec
 from rgmcad.sim.world import World
@@ -195,19 +195,36 @@ def inclusion(spec: EventSpec, world: World) -> Condition:
     normals, offsets = world.cache.get("hull", outer, lambda: _hull_equations(outer))
     centre = world.point_reader(inside, inner.centre_of_mass)
     (x0, y0, z0), (x1, y1, z1) = np.asarray(outer.bbox, float).tolist()
-    fixed = invert(world.pose(container)) if world.scene.bodies[container].static else None
-    rows = fixed[:3].tolist() if fixed is not None else None
+    if world.scene.bodies[container].static:  # plain floats, the box rules out most steps
+        rows = invert(world.pose(container))[:3].tolist()
 
-    def condition():
-        if rows is None:
-            to_local = invert(world.pose(container))
-            point = to_local[:3, :3] @ centre() + to_local[:3, 3]
-        else:  # a static container: plain floats, and the bounding box rules out most steps
+        def condition():
             x, y, z = centre()
             point = [r[0] * x + r[1] * y + r[2] * z + r[3] for r in rows]
             if not (x0 <= point[0] <= x1 and y0 <= point[1] <= y1 and z0 <= point[2] <= z1):
                 return False
-        return bool((normals @ point + offsets).max() <= 0.0)
+            return bool((normals @ point + offsets).max() <= 0.0)
+
+        return condition
+    # A moving container: the centre in its centre-of-mass frame in plain floats, outside a box
+    # holding the hull with a margin far above rounding errors is outside; else the exact test.
+    frame = world.frame_reader(container)
+    (k00, k01, k02, k03), (k10, k11, k12, k13), (k20, k21, k22, k23) = \
+        invert(world.handles[container].com_to_part)[:3].tolist()
+    hull_box = np.vstack([outer.bbox, np.asarray(outer.vertices, float)])
+    (a0, b0, c0), (a1, b1, c1) = (hull_box.min(axis=0) - 1e-9).tolist(), \
+        (hull_box.max(axis=0) + 1e-9).tolist()
+
+    def condition():
+        c = centre()
+        position, quaternion = frame()
+        u, v, w = point_in_frame(position, quaternion, c)
+        if not (a0 <= k00 * u + k01 * v + k02 * w + k03 <= a1
+                and b0 <= k10 * u + k11 * v + k12 * w + k13 <= b1
+                and c0 <= k20 * u + k21 * v + k22 * w + k23 <= c1):
+            return False
+        to_local = invert(world.pose(container))
+        return bool((normals @ (to_local[:3, :3] @ c + to_local[:3, 3]) + offsets).max() <= 0.0)
 
     return condition
 

@@ -156,10 +156,10 @@ def _run(world: World, graph: CausalGraph, settings, hooks: tuple) -> tuple[floa
     step; until the graph is resolved or the duration is over. Returns (t, steps taken)."""
     dt = settings.timestep
     n_steps = int(round(settings.duration / dt))
-    update, step = graph.update, world.step
+    update, step = graph.update, world.stepper()
     t = 0.0
     for i in range(n_steps + 1):
-        t = i * dt
+        t = world.time = i * dt
         if update(t):
             return t, i
         for hook in hooks:
