@@ -1,8 +1,9 @@
 """Simulations on a Dask cluster (:mod:`rgmcad.runs.dask_executor`): a ``LocalCluster`` of two
 worker processes gives the serial executor's result, loses nothing when a worker is killed
-with SIGKILL mid-run, refuses workers of another rgmcad version in one line; and, with real ``dask scheduler`` and
-``dask worker`` processes started as the README says, a scheduler killed mid-run stops the
-run in one line, and the same command resumes once a scheduler and workers are back."""
+with SIGKILL mid-run, refuses workers of another rgmcad version in one line. With real
+``dask scheduler`` and ``dask worker`` processes started as the README says: a scheduler of
+another version is refused in one line; a scheduler killed mid-run stops the run in one
+line, and the same command resumes once a scheduler and workers are back."""
 
 from __future__ import annotations
 
@@ -149,6 +150,25 @@ def _machines(port: int, folder: Path):
             if p.poll() is None:
                 os.killpg(p.pid, signal.SIGKILL)
             p.wait()
+
+
+def test_a_scheduler_of_another_version_is_refused_in_one_line(tmp_path):
+    # the scheduler unpickles every task graph: it needs this rgmcad too
+    (tmp_path / "other.py").write_text("import rgmcad\nrgmcad.__version__ = '0.0.9-other'\n")
+    port = _free_port()
+    scheduler = _start(["scheduler", "--host", "127.0.0.1", "--port", str(port),
+                        "--no-dashboard", "--preload", str(tmp_path / "other.py")], tmp_path)
+    try:
+        code, out, err = _cli(["evaluate", SIMPLE, "--layout", "initial", "--samples", "1",
+                               "--scheduler", f"tcp://127.0.0.1:{port}",
+                               "--out", str(tmp_path / "p.png")])
+    finally:
+        os.killpg(scheduler.pid, signal.SIGKILL)
+        scheduler.wait()
+    assert code == 2 and out == ""
+    errors = [ln for ln in err.splitlines() if ln.startswith("rgmcad: error")]
+    assert len(errors) == 1 and "the scheduler runs rgmcad 0.0.9-other" in errors[0], err
+    assert "refused" in errors[0]
 
 
 def test_a_scheduler_killed_mid_run_stops_it_in_one_line_and_it_resumes(serial, tmp_path):

@@ -59,11 +59,30 @@ def _code_digest() -> str:
     return h.hexdigest()[:12]
 
 
+RESULT_PACKAGES = ("pybullet", "numpy", "scipy", "scikit-learn")
+"""The libraries whose version can change a simulation or a fitted model: part of
+:func:`fingerprint`."""
+
+
+@lru_cache(maxsize=1)
+def _package_versions() -> str:
+    from importlib.metadata import PackageNotFoundError, version
+
+    def installed(name: str) -> str:
+        try:
+            return version(name)
+        except PackageNotFoundError:
+            return "missing"
+
+    return ", ".join(f"{p} {installed(p)}" for p in RESULT_PACKAGES)
+
+
 def fingerprint() -> str:
-    """This process's rgmcad: ``VERSION+CODE`` (version string, SHA-256 of its sources)."""
+    """This process's rgmcad: ``VERSION+CODE`` (version string, SHA-256 of its sources) and
+    the versions of :data:`RESULT_PACKAGES`."""
     import rgmcad
 
-    return f"{rgmcad.__version__}+{_code_digest()}"
+    return f"{rgmcad.__version__}+{_code_digest()} ({_package_versions()})"
 
 
 class VersionRefused(RuntimeError):
@@ -207,10 +226,16 @@ class DaskExecutor:
         return self._counted[1]
 
     def _check_versions(self) -> None:
-        versions = self.client.run(fingerprint)
-        for worker, version in sorted(versions.items()):
+        # the scheduler too: it unpickles every task graph, so it must import this rgmcad
+        try:
+            versions = {"the scheduler": self.client.run_on_scheduler(fingerprint)}
+        except Exception as exc:  # noqa: BLE001 - its ImportError, pickled back to us
+            versions = {"the scheduler": exc}
+        workers = self.client.run(fingerprint, on_error="return")
+        versions.update((f"worker {w}", v) for w, v in sorted(workers.items()))
+        for where, version in versions.items():
             if version != self.expected:
-                raise _refusal(self.address, worker, version, self.expected)
+                raise _refusal(self.address, where, version, self.expected)
 
     def map(self, fn, items):
         return self._submit(_apply_batch, (self.expected, fn), items)
@@ -290,9 +315,11 @@ def _local_workers(scheduler: str) -> int:
     return n
 
 
-def _refusal(address: str, worker: str, version: str, expected: str) -> RgmcadError:
-    return RgmcadError(address, "", f"worker {worker} runs rgmcad {version}, this client "
-                       f"{expected}: refused; install the client's rgmcad on every worker")
+def _refusal(address: str, where: str, version, expected: str) -> RgmcadError:
+    runs = (f"cannot load rgmcad ({type(version).__name__}: {version})"
+            if isinstance(version, BaseException) else f"runs rgmcad {version}")
+    return RgmcadError(address, "", f"{where} {runs}, this client {expected}: refused; "
+                       "install the client's rgmcad on the scheduler and every worker")
 
 
 def _is_connection_loss(exc: BaseException, client) -> bool:
