@@ -215,3 +215,16 @@ def test_a_benchmark_on_dask_gives_the_process_table(cluster, tmp_path):
         return {k: v for k, v in r.items() if not k.startswith("time")}
 
     assert [untimed(r) for r in rows] == [untimed(r) for r in serial]
+
+
+def test_tasks_fill_whole_waves_of_workers():
+    from rgmcad.runs.dask_executor import task_size
+
+    for slots in (1, 2, 3, 8, 32, 128):
+        for n in range(1, 2000, 7):
+            size = task_size(n, slots, 8)
+            tasks = -(-n // size)
+            waves = -(-tasks // slots)
+            assert 1 <= size <= 8
+            assert waves == -(-n // (8 * slots))  # no more waves than tasks of 8 need
+            assert size == -(-n // (waves * slots))  # the waves as full as they can be

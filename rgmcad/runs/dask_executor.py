@@ -165,11 +165,11 @@ class DaskExecutor:
     max_batch : int, default 8
         Most items per task.
     tasks_per_worker : int, default 1
-        A call of ``map`` over n items makes tasks of ``ceil(n / (tasks_per_worker
-        workers))`` items (at most ``max_batch``): fewer, larger tasks than the process
-        pool's 8 per worker, as a Dask task costs 1.5-3 ms of the client's and the
-        scheduler's time against the pool's 0.1 ms; an unlucky split is evened out by
-        the next batch, already submitted (tools/bench_cluster.py: 1 beat 2 on ballrun).
+        A call of ``map`` over n items makes about ``tasks_per_worker`` tasks per worker
+        (:func:`task_size`): fewer, larger tasks than the process pool's 8 per worker, as
+        a Dask task costs about 5 ms of the client's and the scheduler's CPU and 4 ms of
+        its worker's against the pool's 0.1 ms; an unlucky split is evened out by the next
+        batch, already submitted (tools/bench_cluster.py: 1 beat 2 on ballrun).
     """
 
     def __init__(self, scheduler: str, payload=None, max_batch: int = 8,
@@ -247,8 +247,7 @@ class DaskExecutor:
 
     def _submit(self, apply: Callable, args: tuple, items):
         items = list(items)
-        size = max(1, min(self.max_batch,
-                          -(-len(items) // (self.tasks_per_worker * self.workers))))
+        size = task_size(len(items), self.tasks_per_worker * self.workers, self.max_batch)
         try:
             futures = self.client.map(partial(apply, *args),
                                       [items[i:i + size] for i in range(0, len(items), size)],
@@ -301,6 +300,15 @@ class DaskExecutor:
 
     def __exit__(self, *exc):
         self.close()
+
+
+def task_size(n: int, slots: int, max_batch: int) -> int:
+    """Items per task for ``n`` items on ``slots`` (workers x tasks per worker): as many
+    waves of one task per slot as tasks of at most ``max_batch`` items need, items spread
+    evenly over them (1,500 items on 128 workers: 250 tasks of 6 in 2 waves, where tasks
+    of 8 would make 188 tasks and 2 waves of 8)."""
+    waves = max(1, -(-n // (slots * max_batch)))
+    return max(1, -(-n // (slots * waves)))
 
 
 def _local_workers(scheduler: str) -> int:
