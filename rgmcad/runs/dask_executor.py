@@ -30,12 +30,14 @@ import ctypes
 import hashlib
 import threading
 import time
+import warnings
 from collections.abc import Callable, Sequence
 from functools import lru_cache, partial
 from pathlib import Path
 
 import dask
 from distributed import WorkerPlugin
+from distributed.versions import VersionMismatchWarning
 
 from rgmcad.errors import RgmcadError
 
@@ -200,7 +202,12 @@ class DaskExecutor:
                                                  scheduler_kwargs={"dashboard": False})
                 self.client = Client(self._cluster, set_as_default=False)
             else:
-                self.client = Client(scheduler, timeout=connect_timeout, set_as_default=False)
+                # Dask's table of every differing package: our fingerprint check below says
+                # in one line what matters to results
+                with warnings.catch_warnings():
+                    warnings.simplefilter("ignore", VersionMismatchWarning)
+                    self.client = Client(scheduler, timeout=connect_timeout,
+                                         set_as_default=False)
         except (OSError, TimeoutError) as exc:
             self.close()
             raise RgmcadError(scheduler, "", "no Dask scheduler answers there "
