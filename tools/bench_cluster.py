@@ -4,7 +4,9 @@
    the exploration does (batches of ``--batch`` layouts, two batches in flight) on a process
    pool and on a Dask ``LocalCluster`` with ``--workers`` workers each (both warm: start-up
    excluded), alternately ``--repeat`` times; prints simulations per second and the ratio
-   Dask / pool (target >= 0.9).
+   Dask / pool (target >= 0.9), and the CPU seconds per simulation of every process each
+   needs (client, scheduler, nannies, workers): on a machine shared with other work the
+   wall-clock ratio moves with the others' load, the CPU cost much less.
 2. Per-task overhead: ``--tasks`` empty tasks, one item each, on both executors (ms/task),
    and the mean serial seconds per simulation.
 3. Batch sizes: ``optimize --budget small`` on simple and ballrun with exploration batches
@@ -16,12 +18,15 @@
 """
 
 import argparse
+import contextlib
+import os
 import statistics
 import tempfile
 import time
 from pathlib import Path
 
 import numpy as np
+import psutil
 from scipy.stats import qmc
 
 from rgmcad.runs.dask_executor import DaskExecutor
@@ -64,6 +69,16 @@ def task_overhead(executor, n: int) -> float:
         executor.max_batch = max_batch
 
 
+def _cpu_seconds(pids) -> float:
+    """User + system CPU seconds of these processes so far."""
+    total = 0.0
+    for pid in pids:
+        with contextlib.suppress(psutil.Error):
+            t = psutil.Process(pid).cpu_times()
+            total += t.user + t.system
+    return total
+
+
 def throughput(args) -> None:
     problem = ScenarioProblem(args.scenario)
     X = valid_layouts(problem, args.layouts)
@@ -72,23 +87,36 @@ def throughput(args) -> None:
     pool = PoolExecutor(args.workers, problem.context)
     dask = DaskExecutor(f"local:{args.workers}", problem.payload(),
                         tasks_per_worker=args.tasks_per_worker)
+    # every process that works for each: this one (client; for local:N also the scheduler
+    # and the nannies) and its workers
+    pids = {"pool": [os.getpid(), *pool._pool._processes],
+            "dask": [os.getpid(), *dask.client.run(os.getpid).values()]}
     try:
         for ex in (pool, dask):  # warm: contexts loaded, engines connected
             exploration_like(ex, X[:4 * args.workers], args.batch)
-        rates = {"pool": [], "dask": []}
+        rates, cpu = {"pool": [], "dask": []}, {"pool": [], "dask": []}
         for _ in range(args.repeat):
             for name, ex in (("pool", pool), ("dask", dask)):
+                c = _cpu_seconds(pids[name])
                 rates[name].append(len(X) / exploration_like(ex, X, args.batch))
+                cpu[name].append((_cpu_seconds(pids[name]) - c) / len(X))
         over = {name: task_overhead(ex, args.tasks) for name, ex in (("pool", pool),
                                                                      ("dask", dask))}
     finally:
         pool.close()
         dask.close()
     p, d = statistics.median(rates["pool"]), statistics.median(rates["dask"])
+    paired = sorted(b / a for a, b in zip(rates["pool"], rates["dask"], strict=True))
+    cp, cd = statistics.median(cpu["pool"]), statistics.median(cpu["dask"])
     print(f"{Path(args.scenario).stem}: {len(X)} valid Sobol layouts, batches of {args.batch}, "
-          f"{args.workers} workers, median of {args.repeat}")
+          f"{args.workers} workers, {args.repeat} rounds alternating, load average "
+          f"{os.getloadavg()[0]:.1f}")
     print(f"  serial seconds per simulation: {per_sim * 1000:.1f} ms")
-    print(f"  process pool: {p:.1f} sim/s   dask: {d:.1f} sim/s   dask/pool = {d / p:.2f}")
+    print(f"  process pool: {p:.1f} sim/s   dask: {d:.1f} sim/s   dask/pool = {d / p:.2f} "
+          f"(medians; per round {statistics.median(paired):.2f}, "
+          f"{paired[0]:.2f}-{paired[-1]:.2f})")
+    print(f"  CPU per simulation, all processes: pool {cp * 1000:.1f} ms, dask "
+          f"{cd * 1000:.1f} ms: dask/pool = {cp / cd:.2f} on cores of their own")
     print(f"  per-task overhead (empty one-item tasks, {args.tasks}): pool "
           f"{over['pool']:.2f} ms, dask {over['dask']:.2f} ms")
 

@@ -2,7 +2,8 @@
 
 :class:`DaskExecutor` speaks the executor protocol of :mod:`rgmcad.runs.executor`
 (``workers``, ``map``, ``map_context``, ``close``). Items go out in batches (several per
-task: a Dask task costs 2-3 ms of scheduling) and come back in the order of the items, so a
+task: a Dask task costs about 5 ms of the client's and scheduler's CPU and 4 ms of its
+worker's; :func:`task_size`) and come back in the order of the items, so a
 seed gives the identical result here, on a process pool or serially.
 
 What the workers need travels from the client: a :class:`~rgmcad.runs.problem.ContextPayload`
@@ -12,26 +13,31 @@ that joins later included, holds it; a task names the digest and the worker buil
 :class:`~rgmcad.runs.problem.ScenarioContext` from the payload once per thread (no shared
 file system, nothing but rgmcad installed).
 
-Every worker must run this rgmcad (its version and a digest of its code,
-:func:`fingerprint`): the workers present are checked when the executor connects, and each
-task checks again where it runs (a worker may join later); another version is refused with
-one line (:class:`~rgmcad.errors.RgmcadError`). A worker that dies mid-run loses nothing: the
+The scheduler and every worker must run this rgmcad (its version, a digest of its code and
+the versions of the libraries that shape results, :func:`fingerprint`; the scheduler
+unpickles every task graph): they are checked when the executor connects, and each task
+checks again where it runs (a worker may join later); another version, or none, is refused
+with one line (:class:`~rgmcad.errors.RgmcadError`). Each worker undoes the nanny's memory
+trimming (:func:`_keep_freed_memory`). A worker that dies mid-run loses nothing: the
 scheduler runs its tasks elsewhere. A scheduler that disappears stops the run with one line;
 every finished simulation is in the run directory (on the client), so the same command
-resumes once a scheduler is back.
+resumes once a scheduler and workers are back (a ``dask worker`` ends with its scheduler).
 """
 
 from __future__ import annotations
 
+import ctypes
 import hashlib
 import threading
 import time
+import warnings
 from collections.abc import Callable, Sequence
 from functools import lru_cache, partial
 from pathlib import Path
 
 import dask
 from distributed import WorkerPlugin
+from distributed.versions import VersionMismatchWarning
 
 from rgmcad.errors import RgmcadError
 
@@ -58,11 +64,30 @@ def _code_digest() -> str:
     return h.hexdigest()[:12]
 
 
+RESULT_PACKAGES = ("pybullet", "numpy", "scipy", "scikit-learn")
+"""The libraries whose version can change a simulation or a fitted model: part of
+:func:`fingerprint`."""
+
+
+@lru_cache(maxsize=1)
+def _package_versions() -> str:
+    from importlib.metadata import PackageNotFoundError, version
+
+    def installed(name: str) -> str:
+        try:
+            return version(name)
+        except PackageNotFoundError:
+            return "missing"
+
+    return ", ".join(f"{p} {installed(p)}" for p in RESULT_PACKAGES)
+
+
 def fingerprint() -> str:
-    """This process's rgmcad: ``VERSION+CODE`` (version string, SHA-256 of its sources)."""
+    """This process's rgmcad: ``VERSION+CODE`` (version string, SHA-256 of its sources) and
+    the versions of :data:`RESULT_PACKAGES`."""
     import rgmcad
 
-    return f"{rgmcad.__version__}+{_code_digest()}"
+    return f"{rgmcad.__version__}+{_code_digest()} ({_package_versions()})"
 
 
 class VersionRefused(RuntimeError):
@@ -75,7 +100,27 @@ class _PayloadPlugin(WorkerPlugin):
     def __init__(self, payload):
         self.payload = payload
 
-    def setup(self, worker):  # the payload is what a worker keeps; nothing to start
+    def setup(self, worker):  # the payload is what a worker keeps
+        _keep_freed_memory()
+
+
+M_TRIM_THRESHOLD, M_MMAP_THRESHOLD = -1, -3  # <malloc.h>
+
+
+@lru_cache(maxsize=1)
+def _keep_freed_memory() -> None:
+    """Undo, once in this worker process, the ``MALLOC_TRIM_THRESHOLD_=65536`` that a Dask
+    nanny gives the processes it starts: with it glibc returns freed memory to the system at
+    once and serves every block over 128 kB by its own ``mmap``, and a simulation, which
+    builds and drops a physics world, spent 15-20 % more CPU (page faults, trims; 44 against
+    37 ms per ballrun simulation, docs/decisions.md). The thresholds set are the highest that
+    glibc's own adaptive default reaches (32 MiB, trim at twice that): a worker keeps at most
+    that much freed memory for reuse."""
+    try:
+        libc = ctypes.CDLL(None)
+        libc.mallopt(M_MMAP_THRESHOLD, 32 << 20)
+        libc.mallopt(M_TRIM_THRESHOLD, 64 << 20)
+    except (OSError, AttributeError):  # not glibc: nothing to undo
         pass
 
 
@@ -93,6 +138,7 @@ def _context(name: str, expected: str):
     if name not in contexts:
         from distributed import get_worker
 
+        _keep_freed_memory()
         contexts[name] = get_worker().plugins[name].payload.context()
     return contexts[name]
 
@@ -100,6 +146,7 @@ def _context(name: str, expected: str):
 def _apply_batch(expected: str, fn: Callable, batch: Sequence) -> list:
     if fingerprint() != expected:
         raise VersionRefused(f"rgmcad {fingerprint()}, client {expected}")
+    _keep_freed_memory()
     return [fn(item) for item in batch]
 
 
@@ -123,11 +170,11 @@ class DaskExecutor:
     max_batch : int, default 8
         Most items per task.
     tasks_per_worker : int, default 1
-        A call of ``map`` over n items makes tasks of ``ceil(n / (tasks_per_worker
-        workers))`` items (at most ``max_batch``): fewer, larger tasks than the process
-        pool's 8 per worker, as a Dask task costs 1.5-3 ms of the client's and the
-        scheduler's time against the pool's 0.1 ms; an unlucky split is evened out by
-        the next batch, already submitted (tools/bench_cluster.py: 1 beat 2 on ballrun).
+        A call of ``map`` over n items makes about ``tasks_per_worker`` tasks per worker
+        (:func:`task_size`): fewer, larger tasks than the process pool's 8 per worker, as
+        a Dask task costs about 5 ms of the client's and the scheduler's CPU and 4 ms of
+        its worker's against the pool's 0.1 ms; an unlucky split is evened out by the next
+        batch, already submitted (tools/bench_cluster.py: 1 beat 2 on ballrun).
     """
 
     def __init__(self, scheduler: str, payload=None, max_batch: int = 8,
@@ -155,7 +202,12 @@ class DaskExecutor:
                                                  scheduler_kwargs={"dashboard": False})
                 self.client = Client(self._cluster, set_as_default=False)
             else:
-                self.client = Client(scheduler, timeout=connect_timeout, set_as_default=False)
+                # Dask's table of every differing package: our fingerprint check below says
+                # in one line what matters to results
+                with warnings.catch_warnings():
+                    warnings.simplefilter("ignore", VersionMismatchWarning)
+                    self.client = Client(scheduler, timeout=connect_timeout,
+                                         set_as_default=False)
         except (OSError, TimeoutError) as exc:
             self.close()
             raise RgmcadError(scheduler, "", "no Dask scheduler answers there "
@@ -184,10 +236,16 @@ class DaskExecutor:
         return self._counted[1]
 
     def _check_versions(self) -> None:
-        versions = self.client.run(fingerprint)
-        for worker, version in sorted(versions.items()):
+        # the scheduler too: it unpickles every task graph, so it must import this rgmcad
+        try:
+            versions = {"the scheduler": self.client.run_on_scheduler(fingerprint)}
+        except Exception as exc:  # noqa: BLE001 - its ImportError, pickled back to us
+            versions = {"the scheduler": exc}
+        workers = self.client.run(fingerprint, on_error="return")
+        versions.update((f"worker {w}", v) for w, v in sorted(workers.items()))
+        for where, version in versions.items():
             if version != self.expected:
-                raise _refusal(self.address, worker, version, self.expected)
+                raise _refusal(self.address, where, version, self.expected)
 
     def map(self, fn, items):
         return self._submit(_apply_batch, (self.expected, fn), items)
@@ -199,8 +257,7 @@ class DaskExecutor:
 
     def _submit(self, apply: Callable, args: tuple, items):
         items = list(items)
-        size = max(1, min(self.max_batch,
-                          -(-len(items) // (self.tasks_per_worker * self.workers))))
+        size = task_size(len(items), self.tasks_per_worker * self.workers, self.max_batch)
         try:
             futures = self.client.map(partial(apply, *args),
                                       [items[i:i + size] for i in range(0, len(items), size)],
@@ -255,6 +312,15 @@ class DaskExecutor:
         self.close()
 
 
+def task_size(n: int, slots: int, max_batch: int) -> int:
+    """Items per task for ``n`` items on ``slots`` (workers x tasks per worker): as many
+    waves of one task per slot as tasks of at most ``max_batch`` items need, items spread
+    evenly over them (1,500 items on 128 workers: 250 tasks of 6 in 2 waves, where tasks
+    of 8 would make 188 tasks and 2 waves of 8)."""
+    waves = max(1, -(-n // (slots * max_batch)))
+    return max(1, -(-n // (slots * waves)))
+
+
 def _local_workers(scheduler: str) -> int:
     from rgmcad.runs.executor import max_workers
 
@@ -267,9 +333,11 @@ def _local_workers(scheduler: str) -> int:
     return n
 
 
-def _refusal(address: str, worker: str, version: str, expected: str) -> RgmcadError:
-    return RgmcadError(address, "", f"worker {worker} runs rgmcad {version}, this client "
-                       f"{expected}: refused; install the client's rgmcad on every worker")
+def _refusal(address: str, where: str, version, expected: str) -> RgmcadError:
+    runs = (f"cannot load rgmcad ({type(version).__name__}: {version})"
+            if isinstance(version, BaseException) else f"runs rgmcad {version}")
+    return RgmcadError(address, "", f"{where} {runs}, this client {expected}: refused; "
+                       "install the client's rgmcad on the scheduler and every worker")
 
 
 def _is_connection_loss(exc: BaseException, client) -> bool:
