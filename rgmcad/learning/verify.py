@@ -1,5 +1,5 @@
 """Choosing the layout to hand to the builder: simulate the optimum and a few alternatives
-under placement errors, keep the one that works most often.
+under errors, keep the one that works most often.
 
 The refinement (section 7) maximises a *model's* prediction; the model can be confidently
 wrong where it has few samples, and then the optimum fails or works only at the exact point.
@@ -9,9 +9,9 @@ itself, and is then simulated at ``verify_samples`` errors of a fixed design
 (:mod:`rgmcad.learning.errors`, the same for every candidate): Gaussian placement errors of
 standard deviation ``verify_noise``, copies outside the design space clipped onto it; or,
 with ``error_radius`` > 0, the errors of global robustness, kept in the design space with
-their importance weights. Invalid copies are left out. The candidate with the highest success rate among its
-valid copies (per radius, then averaged over radii, for ball errors) wins; ties go to the
-earlier candidate, so the optimum first. With ``verify_samples = 0`` the choice is the
+their importance weights. Invalid copies are left out. The candidate with the highest
+success rate among its valid copies (per radius, then averaged over radii, for ball errors)
+wins; ties go to the earlier candidate, so the optimum first. With ``verify_samples = 0`` the choice is the
 paper's: the optimum if it succeeds, else the best predicted simulated success.
 """
 
