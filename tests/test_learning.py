@@ -28,13 +28,13 @@ from rgmcad.learning import (
     learn_active,
     learn_and_optimize,
     maximize_robustness,
-    placement_offsets,
     placement_tolerance,
     select_dimensions,
     smooth_min,
     topological_events,
     verify_layout,
 )
+from rgmcad.learning.errors import gaussian_errors
 
 # A small grid keeps each SVM fit under half a second; the defaults use the authors' 98.
 FAST = LearningSettings(
@@ -516,11 +516,11 @@ def test_optimizer_respects_the_penetration_constraint():
 
 
 def test_placement_errors_are_a_fixed_gaussian_design():
-    E = placement_offsets(5, 0.05, 30)
+    E = gaussian_errors(5, 0.05, 30).offsets
     assert E.shape == (32, 5)
     np.testing.assert_allclose(E.mean(0), 0, atol=1e-12)
     np.testing.assert_allclose(E.std(0), 0.05)
-    np.testing.assert_array_equal(E, placement_offsets(5, 0.05, 30))
+    np.testing.assert_array_equal(E, gaussian_errors(5, 0.05, 30).offsets)
 
 
 def test_placement_tolerance():

@@ -43,7 +43,6 @@ from .graph import Requirement, SuccessLogic, ancestors, topological_events
 from .optimize import (
     OptimizationResult,
     maximize_robustness,
-    placement_offsets,
     placement_tolerance,
     start_point,
 )
@@ -105,7 +104,6 @@ __all__ = [
     "learn_active",
     "learn_and_optimize",
     "maximize_robustness",
-    "placement_offsets",
     "placement_tolerance",
     "query_distribution",
     "sample_mixture",

@@ -41,8 +41,8 @@ class ErrorDesign:
     levels: np.ndarray | None = None
 
     @property
-    def rejects_outside(self) -> bool:
-        """Whether errors must keep the layout in the cube (ball errors)."""
+    def within_cube(self) -> bool:
+        """Whether the errors keep the layout in the cube (ball errors, by :meth:`at`)."""
         return self.levels is not None
 
     def at(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -94,8 +94,9 @@ def _power_of_two(n: int) -> int:
 
 def gaussian_errors(d: int, sigma: float, n: int) -> ErrorDesign:
     """Gaussian errors of standard deviation ``sigma``: ``n`` rounded up to a power of two
-    stratified normal quantiles per column, rescaled to mean 0 and standard deviation
-    exactly ``sigma``."""
+    points of an unscrambled Sobol sequence, moved to the midpoints of their strata, through
+    the normal quantile; each column is then a permutation of the stratified normal
+    quantiles, rescaled to mean 0 and standard deviation exactly ``sigma``."""
     z = ndtri(_sobol_midpoints(d, _power_of_two(n)))
     return ErrorDesign(sigma * z / z.std(axis=0))
 

@@ -33,7 +33,7 @@ from dataclasses import dataclass
 import nlopt
 import numpy as np
 
-from .errors import design_from_settings, expected_success, gaussian_errors
+from .errors import design_from_settings, expected_success
 from .factorize import SPDModel
 from .settings import LearningSettings
 
@@ -42,7 +42,6 @@ __all__ = [
     "start_point",
     "start_points",
     "maximize_robustness",
-    "placement_offsets",
     "placement_tolerance",
 ]
 
@@ -153,7 +152,7 @@ def maximize_robustness(
         n_eval += 1
         if design is None:
             f, g = model.objective(x)
-        elif design.rejects_outside:  # the errors of the ball that keep x in the cube
+        elif design.within_cube:  # the errors of the ball that keep x in the cube
             offsets, raw = design.at(x)
             w = design.normalized(raw)
             keep = w > 0
@@ -215,19 +214,6 @@ def maximize_robustness(
         n_penetration_calls=len(pen_cache),
         status=status,
     )
-
-
-def placement_offsets(d: int, sigma: float, n: int) -> np.ndarray:
-    """(m, d) Gaussian placement errors of standard deviation ``sigma``, m = ``n`` rounded up
-    to a power of two.
-
-    A deterministic quasi-random design (no randomness, so the objective is a smooth,
-    deterministic function of x): the first m points of an unscrambled Sobol sequence,
-    shifted to the midpoints of their strata, through the normal quantile. Each column is
-    then a permutation of the m stratified normal quantiles, rescaled so that its mean is 0
-    and its standard deviation exactly ``sigma``.
-    """
-    return gaussian_errors(d, sigma, n).offsets
 
 
 _STATUS = {
