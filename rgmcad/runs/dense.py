@@ -23,7 +23,13 @@ from collections.abc import Callable
 import numpy as np
 from scipy.stats import qmc
 
-from rgmcad.runs.robustness import EPS_GRID, ETA, RobustnessCurve, wilson_interval
+from rgmcad.runs.robustness import (
+    EPS_GRID,
+    ETA,
+    RobustnessCurve,
+    trapezoid_weights,
+    wilson_interval,
+)
 
 __all__ = ["dense_valid_set", "local_points", "dense_curve", "balls_of"]
 
@@ -105,7 +111,7 @@ def dense_curve(x: np.ndarray, points: np.ndarray, success: np.ndarray,
     k = balls_of(x, P, eps, eta)
     inside = k < len(eps)
     k, S = k[inside], S[inside]
-    weights = np.trapezoid(np.eye(len(eps)), eps, axis=1)
+    weights = trapezoid_weights(eps)
 
     def curve(w):  # w: (b, m) weights of the points; (b, k) counts and successes per ball
         counts = np.cumsum(np.stack([np.bincount(k, wi, len(eps)) for wi in w]), axis=1)

@@ -54,7 +54,7 @@ from rgmcad.scene.perturbation import PhysicsDraw, PhysicsRanges
 from rgmcad.sim.run import Outcome
 
 __all__ = ["ETA", "EPS_GRID", "RobustnessCurve", "ball_samples", "wilson_interval",
-           "local_robustness", "robustness_on", "figures", "plot_curves"]
+           "local_robustness", "robustness_on", "figures", "plot_curves", "trapezoid_weights"]
 
 ETA = 1.0 / 300.0
 """Offset added to every radius (the authors' ``1 / (10 N_STEPS)``)."""
@@ -278,7 +278,7 @@ def _curve(x, eps, sizes, records, n_tested, z, eta) -> RobustnessCurve:
     with np.errstate(invalid="ignore", divide="ignore"):
         rho = np.where(counts > 0, succ / np.maximum(counts, 1), 0.0)
     low, high = wilson_interval(succ, counts, z)
-    weights = _trapezoid_weights(eps)
+    weights = trapezoid_weights(eps)
     rho_g = float(weights @ rho)
     var = np.where(counts > 0, rho * (1 - rho) / np.maximum(counts, 1), 0.25)
     half = z * float(np.sqrt(weights**2 @ var))
@@ -289,7 +289,7 @@ def _curve(x, eps, sizes, records, n_tested, z, eta) -> RobustnessCurve:
     )
 
 
-def _trapezoid_weights(t: np.ndarray) -> np.ndarray:
+def trapezoid_weights(t: np.ndarray) -> np.ndarray:
     """w with ``w @ f == trapz(f, t)``."""
     w = np.zeros(len(t))
     dt = np.diff(t)
