@@ -103,9 +103,9 @@ def _analyse(layouts, dense_X, dense_ok, locals_, samples: int, n_local_sims: in
     dense_se = np.array([(c.rho_g_high - c.rho_g_low) / (2 * Z) for c in curves])
     ours = np.array([e["rho_g"] for e in layouts])
     diff = dense - ours
-    out = {"n": len(dense_X), "kendall_tau": kendalltau(dense, ours)[0],
-           "kendall_p": kendalltau(dense, ours)[1], "spearman": spearmanr(dense, ours)[0],
-           "spearman_p": spearmanr(dense, ours)[1],
+    tau, rho = kendalltau(dense, ours), spearmanr(dense, ours)
+    out = {"n": len(dense_X), "kendall_tau": tau[0], "kendall_p": tau[1],
+           "spearman": rho[0], "spearman_p": rho[1],
            "difference_mean": float(diff.mean()), "difference_sd": float(diff.std(ddof=1)),
            "difference_max_abs": float(np.abs(diff).max()),
            "dense_se_mean": float(dense_se.mean())}
