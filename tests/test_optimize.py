@@ -342,3 +342,14 @@ def test_full_learns_one_model_for_the_whole_graph_in_its_own_run_directory(refe
     assert list(full["event_probabilities"]) == [GLOBAL_EVENT]
     assert default_run_dir("simple", "default", 0, full=True).name == "simple-full-s0"
     assert default_run_dir("simple", "small", 2, 40, full=True).name == "simple-small-b40-full-s2"
+
+
+def test_the_command_line_full_option_reaches_the_learner(tmp_path, monkeypatch):
+    """``rgmcad optimize SIMPLE --budget small --full`` as typed (on the tiny settings)."""
+    import rgmcad.learning.settings as settings_module
+    from rgmcad.learning.factorize import GLOBAL_EVENT
+
+    monkeypatch.setattr(settings_module, "budget", lambda name: TINY)
+    code, summary = _run(["optimize", SIMPLE, "--budget", "small", "--seed", "3", "--full",
+                          "--run", str(tmp_path / "run"), "--json", "-q"])
+    assert code == 0 and list(summary["event_probabilities"]) == [GLOBAL_EVENT]
