@@ -1,12 +1,14 @@
 """The held-out scenarios of tools/generality/: what a new user does first with a file they
 wrote, `rgmcad check` it and `rgmcad simulate` its hand-found layout, must work for each."""
 
+import dataclasses
 import json
 from pathlib import Path
 
 import pytest
 
 from rgmcad.cli import main
+from rgmcad.parts.family import load_families
 
 HELD_OUT = sorted(Path("tools/generality").glob("*.toml"))
 
@@ -32,3 +34,16 @@ def test_hand_layout_succeeds(path, capsys):
     # Held-out scenarios stay cheap enough to optimise: a few seconds simulated, tens of
     # events at most.
     assert out["sim_time"] < 5.0
+
+
+def test_readme_lists_every_part_family_with_its_parameters():
+    # A new user writes a scenario from the README's table of families, not from parts/*.py.
+    text = Path("README.md").read_text()
+    table = text.split("<!-- part families:")[1].split("<!-- end of part families -->")[0]
+    rows = {line.split("|")[1].strip(" `"): line for line in table.splitlines()
+            if line.startswith("| `")}
+    families = load_families()
+    assert sorted(rows) == sorted(families)
+    for name, family in families.items():
+        for field in dataclasses.fields(family.params):
+            assert f"`{field.name}`" in rows[name], f"{name}: {field.name} missing"
