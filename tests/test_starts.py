@@ -7,6 +7,7 @@ import contextlib
 import hashlib
 import io
 import json
+import shutil
 import sys
 from pathlib import Path
 
@@ -14,6 +15,7 @@ import numpy as np
 import pytest
 
 from rgmcad.cli import main
+from rgmcad.errors import RgmcadError
 from rgmcad.learning import (
     BallRegion,
     LearningSettings,
@@ -203,3 +205,25 @@ def test_a_bad_start_is_refused_in_one_line_before_any_simulation(
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "--start" in err[0] and why in err[0], err
     assert not run.exists()
+
+
+def test_an_interrupted_run_from_a_start_resumes_to_the_same_result(tmp_path):
+    from rgmcad.runs.workflow import optimize_scenario
+
+    def optimize(run):
+        return optimize_scenario(SIMPLE, seed=3, budget="small", settings=TINY, run_dir=run,
+                                 workers=1, starts=["solved"])
+
+    ref = optimize(tmp_path / "ref").summary
+    run = tmp_path / "run"
+    run.mkdir()
+    shutil.copy(tmp_path / "ref" / "settings.json", run)
+    lines = (tmp_path / "ref" / "simulations.jsonl").read_bytes().splitlines(keepends=True)
+    kept = len(lines) // 3  # a third of the simulations, then a line cut (killed writing)
+    (run / "simulations.jsonl").write_bytes(b"".join(lines[:kept]) + lines[kept][:40])
+    resumed = optimize(run).summary
+    assert resumed["vector"] == ref["vector"] and resumed["source"] == ref["source"]
+    assert resumed["simulated_now"] == len(lines) - kept
+    # other starts, or none, are another run: this directory is refused for them
+    with pytest.raises(RgmcadError, match="settings.json"):
+        optimize_scenario(SIMPLE, seed=3, budget="small", settings=TINY, run_dir=run, workers=1)
