@@ -40,6 +40,10 @@ def configure(p: argparse.ArgumentParser) -> None:
                    "1 to 10000 (default 10); more keeps more workers busy")
     p.add_argument("--full", action="store_true", help="one success model for the whole "
                    "causal graph instead of one per event (the paper's Fig. 16 comparison)")
+    p.add_argument("--start", action="append", default=[], metavar="LAYOUT", help="start from "
+                   "your own layout (a named layout of the scenario or a layout file; repeat "
+                   "for several): simulated first, and returned unless something more robust "
+                   "is found")
     add_scheduler_args(p)
     physics.add_robustness_arg(p)
     p.add_argument("--json", action="store_true", help="print one JSON summary on stdout")
@@ -64,7 +68,7 @@ def run(args) -> int:
                                  run_dir=args.run_dir, workers=args.workers,
                                  build_dir=args.build_dir, progress=bar,
                                  parts_dir=parts_dir_arg(args), scheduler=args.scheduler,
-                                 batch=args.batch, full=args.full,
+                                 batch=args.batch, full=args.full, starts=args.start,
                                  **physics.robustness_options(args))
     finally:
         bar.close()

@@ -169,10 +169,12 @@ def learn_and_optimize(
     *,
     on_progress: Callable[[Progress], None] | None = None,
     executor: Any = None,
+    starts: np.ndarray | None = None,
 ) -> LearningResult:
     """Find a robust design vector for ``problem`` (paper sections 5-7).
 
-    1. Exploration (Alg. 1): Sobol points, then mixtures around the most successful samples.
+    1. Exploration (Alg. 1): the user's start layouts if any, Sobol points, then mixtures
+       around the most successful samples.
     2. Success model: factorised per event with active learning on each subspace (section
        6), or one global model when ``settings.factorized`` is False.
     3. Start at the explored sample with the highest predicted success (and, with
@@ -193,6 +195,10 @@ def learn_and_optimize(
         Anything with ``map(fn, iterable)``; simulations are submitted one design vector
         per task as ``executor.map(problem.simulate, ...)`` (so ``problem`` must be picklable
         for a process pool). Results keep their order, so the run stays deterministic.
+    starts : (k, d) float in [0, 1]^d, optional
+        Layouts to start from (the user's own): simulated first, so that the exploration
+        grows around those that work (:func:`~.sampling.explore`). None: the paper's method,
+        bit for bit.
 
     Returns
     -------
@@ -209,7 +215,7 @@ def learn_and_optimize(
 
     exploration = explore(
         problem, settings, rng, simulate=lambda X: record(X, "exploration"),
-        submit=lambda X: record.submit(X, "exploration"),
+        submit=lambda X: record.submit(X, "exploration"), starts=starts,
     )
     report(
         "exploration",

@@ -183,7 +183,8 @@ class Exploration:
     Attributes
     ----------
     X : (n, d) float
-        Simulated samples, in simulation order (the first ``n_initial`` are Sobol points).
+        Simulated samples, in simulation order: the valid start layouts (if any), then the
+        Sobol points, then the adaptive iterations' draws.
     labels : tuple of Label
         Their labels.
     n_iterations : int
@@ -208,10 +209,13 @@ def explore(
     *,
     simulate: SimulateFn | None = None,
     submit: SubmitFn | None = None,
+    starts: np.ndarray | None = None,
 ) -> Exploration:
     """Initial exploration by adaptive sampling (paper Alg. 1, authors'
     ``find_successful_samples_adaptive``).
 
+    0. With ``starts`` (layouts the user already has), simulate the valid ones first: a start
+       that succeeds, even partly, is then among the samples the mixtures grow around.
     1. Simulate the first ``n_initial`` valid points of a Sobol sequence (at most
        ``max_draws_factor * n_initial`` candidates).
     2. While fewer than ``n_successes`` samples succeeded globally and fewer than
@@ -243,6 +247,9 @@ def explore(
         ``submit(X) -> wait`` starts simulating ``X`` and returns ``wait() -> list[Label]``;
         the batches are waited for in the order they were submitted. Default: ``simulate``,
         run when waited for.
+    starts : (k, d) float in [0, 1]^d, optional
+        Start layouts; invalid ones are left out. None: the paper's exploration, unchanged
+        (no random draw depends on the starts).
 
     Returns
     -------
@@ -256,14 +263,24 @@ def explore(
     d = problem.dimension
     sobol = SobolStream(d, s.sobol_scramble, rng)
 
+    Xs, labels = [], []
+    if starts is not None:
+        starts = np.asarray(starts, dtype=float).reshape(-1, d)
+        X_start = starts[np.asarray(problem.validity(starts), dtype=bool)] if len(starts) else starts
+        if len(X_start) < len(starts):
+            logger.warning("exploration: %d of %d start layouts are invalid, left out",
+                           len(starts) - len(X_start), len(starts))
+        if len(X_start):
+            Xs.append(X_start)
+            labels.extend(simulate(X_start))
     X0, n_tested = _sobol_valid(sobol, problem.validity, s.n_initial, s.max_draws_factor)
     if len(X0) < s.n_initial:
         logger.warning(
             "exploration: only %d valid Sobol points among %d candidates (wanted %d)",
             len(X0), n_tested, s.n_initial,
         )
-    Xs = [X0]
-    labels = list(simulate(X0)) if len(X0) else []
+    Xs.append(X0)
+    labels.extend(simulate(X0) if len(X0) else [])
     n_succ = [lab.n_success for lab in labels]
     n_global = sum(lab.success for lab in labels)
     in_flight: deque[tuple[np.ndarray, Callable[[], Sequence[Label]]]] = deque()

@@ -11,13 +11,17 @@ standard deviation ``verify_noise``, copies outside the design space clipped ont
 with ``error_radius`` > 0, the errors of global robustness, kept in the design space with
 their importance weights. Invalid copies are left out. The candidate with the highest
 success rate among its valid copies (per radius, then averaged over radii, for ball errors)
-wins; ties go to the earlier candidate, so the optimum first. With ``verify_samples = 0`` the choice is the
+wins; ties go to the earlier candidate, so the optimum first.
+
+Start layouts (the user's own, ``starts``) that succeeded in their own simulation are always
+candidates, right after the optimum: the layout returned is then at least as good as the
+user's by this measure. With ``verify_samples = 0`` the choice is the
 paper's: the optimum if it succeeds, else the best predicted simulated success.
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -43,7 +47,8 @@ class Candidate:
     ----------
     x : (d,) float
     source : str
-        ``"optimum"`` or ``"simulated sample #i"`` (row of the run's samples).
+        ``"optimum"``, ``"start layout 'NAME'"`` or ``"simulated sample #i"`` (row of the
+        run's samples).
     outcome : str
         Its own simulation: ``"success"``, ``"failure"`` or ``"invalid"``.
     success_rate : float
@@ -92,6 +97,7 @@ def verify_layout(
     simulate: Callable[[np.ndarray], list[Label]],
     validity: Callable[[np.ndarray], np.ndarray],
     settings: LearningSettings,
+    starts: Mapping[str, np.ndarray] | None = None,
 ) -> Verification:
     """Pick the layout to return (see the module docstring).
 
@@ -109,6 +115,10 @@ def verify_layout(
         ``validity(P) -> (k,) bool``.
     settings : LearningSettings
         ``verify_candidates``, ``verify_samples``, ``verify_noise``.
+    starts : mapping of name to (d,) float, optional
+        The user's start layouts. Each one whose simulation among ``X`` succeeded (one not
+        among ``X`` is simulated here) is a candidate after the optimum, beside the
+        ``verify_candidates``.
     """
     x_opt = np.asarray(x_opt, dtype=float)
     X = np.asarray(X, dtype=float).reshape(len(labels), -1)
@@ -117,13 +127,17 @@ def verify_layout(
     n_sims = 1
 
     d = len(x_opt)
-    successes = [i for i, lab in enumerate(labels) if lab.success and not np.array_equal(X[i], x_opt)]
+    own_starts = _successful_starts(starts or {}, x_opt, X, labels, simulate)
+    n_sims += own_starts.n_simulations
+    taken = [x_opt, *(c.x for c in own_starts.candidates)]
+    successes = [i for i, lab in enumerate(labels)
+                 if lab.success and not any(np.array_equal(X[i], t) for t in taken)]
     rating = design_from_settings(d, settings, settings.placement_samples,
                                   settings.placement_noise)
     order = (np.argsort(-expected_success(model, X[successes], rating), kind="stable")
              if successes else [])
     n_alternatives = settings.verify_candidates - (1 if own.success else 0)
-    candidates = ([optimum] if own.success else []) + [
+    candidates = ([optimum] if own.success else []) + list(own_starts.candidates) + [
         Candidate(X[successes[k]], f"simulated sample #{successes[k]}", "success")
         for k in order[: max(n_alternatives, 0)]
     ]
@@ -152,3 +166,30 @@ def verify_layout(
         tested.append(Candidate(c.x, c.source, c.outcome, rate, int(block_ok.sum())))
     best = max(range(len(tested)), key=lambda k: (tested[k].success_rate, -k))
     return Verification(tested[best], True, optimum, tuple(tested), n_sims)
+
+
+@dataclass(frozen=True)
+class _Starts:
+    candidates: tuple[Candidate, ...]
+    n_simulations: int
+
+
+def _successful_starts(starts, x_opt, X, labels, simulate) -> _Starts:
+    """The start layouts that succeeded in their own simulation (looked up among the run's
+    samples, else simulated now), as candidates; one equal to the optimum is the optimum."""
+    found, missing = [], []
+    for name, x in starts.items():
+        x = np.asarray(x, dtype=float)
+        if np.array_equal(x, x_opt):
+            continue
+        rows = [i for i in range(len(X)) if np.array_equal(X[i], x)]
+        if rows:
+            found.append((name, x, labels[rows[0]]))
+        else:
+            missing.append((name, x))
+    fresh = simulate(np.vstack([x for _, x in missing])) if missing else []
+    found += [(name, x, lab) for (name, x), lab in zip(missing, fresh, strict=True)]
+    order = {name: k for k, name in enumerate(starts)}
+    found.sort(key=lambda item: order[item[0]])
+    return _Starts(tuple(Candidate(x, f"start layout {name!r}", "success")
+                         for name, x, lab in found if lab.success), len(missing))

@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import json
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -47,6 +47,7 @@ from rgmcad.runs.report import (
     plot_slice,
     report_markdown,
 )
+from rgmcad.runs.starts import check_starts_valid, choose_layout, resolve_starts, starts_tag
 from rgmcad.runs.store import (
     MODEL,
     SETTINGS,
@@ -105,12 +106,13 @@ class OptimizationRun:
 
 
 def default_run_dir(scenario_name: str, budget: str, seed: int, batch: int | None = None,
-                    full: bool = False) -> Path:
+                    full: bool = False, starts: Sequence[str] = ()) -> Path:
     """``runs/SCENARIO-sSEED``, or ``runs/SCENARIO-BUDGET-sSEED`` for another budget, with
-    ``-bN`` (an exploration batch of N set by ``--batch``) and ``-full`` (one model, ``--full``)
-    before ``-sSEED``."""
+    ``-bN`` (an exploration batch of N set by ``--batch``), ``-full`` (one model, ``--full``)
+    and ``-from-NAME+...`` (the start layouts, ``--start``) before ``-sSEED``."""
     tag = "" if budget == "default" else f"-{budget}"
     tag += ("" if batch is None else f"-b{batch}") + ("-full" if full else "")
+    tag += starts_tag(starts)
     return Path("runs") / f"{scenario_name}{tag}-s{seed}"
 
 
@@ -122,7 +124,7 @@ def optimize_scenario(
     parts_dir: str | Path | None = None, scheduler: str | None = None,
     batch: int | None = None, robustness_samples: int = 0,
     physics: PhysicsRanges | None = DEFAULT_PHYSICS, physics_noise: PhysicsRanges | None = None,
-    full: bool = False,
+    full: bool = False, starts: Sequence[str] = (),
 ) -> OptimizationRun:
     """Optimise a scenario's layout in a run directory, or continue an interrupted run there.
 
@@ -156,6 +158,10 @@ def optimize_scenario(
         draw of these ranges (noisy labels: the model learns the success probability under
         physical errors); part of the run's identity, ``-physics`` ends the default directory.
     full : one success model for the whole graph (``factorized=False``; paper Fig. 16).
+    starts : the user's layouts to start from (``--start``: names of the scenario's layouts
+        or layout files, :mod:`rgmcad.runs.starts`), checked before any simulation;
+        simulated first by the exploration and always candidates of the final choice. Part
+        of the run's identity and default directory.
     """
     start = time.perf_counter()
     from rgmcad.learning.settings import budget as budget_settings
@@ -173,12 +179,18 @@ def optimize_scenario(
         settings = settings.replace(exploration_batch=int(batch))
     parts = None if parts_dir is None else {
         name: family_digest(family) for name, family in scenario.families.items()}
+    start_vectors = resolve_starts(scenario, starts)
     identity = run_identity(scenario.name, scenario_digest(scenario_path), seed, settings, parts)
+    if start_vectors:
+        identity["starts"] = [[float(u) for u in x] for x in start_vectors.values()]
     if physics_noise is not None:  # noisy labels: another run
         identity["physics_noise"] = physics_noise.to_json()
     tag = "" if physics_noise is None else "-physics"
-    run_dir = Path(run_dir) if run_dir else default_run_dir(scenario.name, budget, seed, batch, full)
+    run_dir = Path(run_dir) if run_dir else default_run_dir(
+        scenario.name, budget, seed, batch, full, list(start_vectors))
     run_dir = run_dir.with_name(run_dir.name + tag) if tag and not given else run_dir
+    problem = ScenarioProblem(scenario_path, build_dir, parts_dir) if start_vectors else None
+    check_starts_valid(problem, start_vectors)  # before any simulation
     with RunStore(run_dir, identity, dimension=len(scenario.free),
                   events=list(scenario.events)) as store:
         summary = store.read_result()  # None unless finished, with its model intact
@@ -187,7 +199,7 @@ def optimize_scenario(
         from rgmcad.learning import learn_and_optimize
         from rgmcad.learning.parallel import jobs_on
 
-        problem = ScenarioProblem(scenario_path, build_dir, parts_dir)
+        problem = problem or ScenarioProblem(scenario_path, build_dir, parts_dir)
         executor = make_executor(workers, problem.context, scheduler=scheduler_from_env(scheduler),
                                  payload=problem.payload)
         try:
@@ -197,10 +209,11 @@ def optimize_scenario(
             # The pool is idle while the models train: their grid searches, calibration folds
             # and mutual information estimates run there (never changing the result).
             with jobs_on(executor):
-                result = learn_and_optimize(learner_problem, settings, seed,
-                                            on_progress=lambda p: progress.stage(p.stage))
+                result = learn_and_optimize(
+                    learner_problem, settings, seed, on_progress=lambda p: progress.stage(p.stage),
+                    starts=np.vstack(list(start_vectors.values())) if start_vectors else None)
             progress.stage("verification")
-            chosen = _verify(learner_problem, result)
+            chosen = choose_layout(learner_problem, result, start_vectors)
             robustness = None
             if robustness_samples:
                 from rgmcad.runs.robustness import figures, robustness_on
@@ -214,33 +227,9 @@ def optimize_scenario(
         finally:
             executor.close()
         summary = _write_outputs(scenario, store, learner_problem, result, chosen,
-                                 time.perf_counter() - start, seed, budget, robustness)
+                                 time.perf_counter() - start, seed, budget, robustness,
+                                 start_vectors)
     return OptimizationRun(run_dir, summary, False, time.perf_counter() - start)
-
-
-def _verify(recorded, result) -> dict:
-    """The layout to hand out: see :mod:`rgmcad.learning.verify`."""
-    from rgmcad.learning import verify_layout
-
-    v = verify_layout(result.model, result.x, result.X, result.labels, recorded.simulate,
-                      recorded.validity, result.settings)
-    c = v.chosen
-    optimum = Outcome(v.optimum.outcome)
-    if not v.verified:
-        source = (f"optimum, unverified: its simulation gave {optimum} and no "
-                  "simulated layout succeeded")
-    elif c.source == "optimum":
-        source = "optimum"
-    elif optimum is not Outcome.SUCCESS:
-        source = f"{c.source} (the optimum's simulation gave {optimum})"
-    else:
-        source = f"{c.source} (more robust than the optimum under errors)"
-    return {"x": c.x, "source": source, "verified": v.verified,
-            "is_optimum": c.source == "optimum", "optimum_outcome": optimum.value,
-            "n_simulations": v.n_simulations,
-            "candidates": [{"source": t.source, "vector": [float(u) for u in t.x],
-                            "success_rate": t.success_rate, "valid_copies": t.n_valid}
-                           for t in v.candidates]}
 
 
 def influence(model, x: np.ndarray) -> np.ndarray:
@@ -280,7 +269,7 @@ def _readable_json(path: Path) -> bool:
 
 
 def _write_outputs(scenario, store, recorded, result, chosen, wall_time, seed, budget,
-                   robustness=None) -> dict:
+                   robustness=None, starts=None) -> dict:
     from rgmcad.scene.design_space import bounds
     from rgmcad.scene.layout_files import layout_document
 
@@ -322,6 +311,7 @@ def _write_outputs(scenario, store, recorded, result, chosen, wall_time, seed, b
         "influence": {f.name: float(v) for f, v in zip(scenario.free, spread, strict=True)},
         "verified": chosen["verified"],
         "source": chosen["source"],
+        "starts": {name: [float(u) for u in v] for name, v in (starts or {}).items()},
         "optimum": {"vector": [float(v) for v in result.x], "probability": result.probability,
                     "outcome": chosen["optimum_outcome"]},
         "start": {"layout": str(start), "vector": [float(v) for v in result.x_start],

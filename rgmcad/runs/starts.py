@@ -1,0 +1,95 @@
+"""The user's own layouts as starts of ``rgmcad optimize --start LAYOUT`` and the choice of
+the layout a run hands out.
+
+A start is what ``simulate --layout`` accepts (a named layout of the scenario or a layout
+file); :func:`resolve_starts` reads and checks them all before any simulation. The starts
+join the run's identity and its default directory's name (:func:`starts_tag`).
+"""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+
+from rgmcad.errors import RgmcadError, UsageError
+from rgmcad.sim.run import Outcome
+
+__all__ = ["resolve_starts", "check_starts_valid", "starts_tag", "choose_layout"]
+
+OPTION = "--start"
+
+
+def resolve_starts(scenario, layouts: Sequence[str]) -> dict[str, np.ndarray]:
+    """Name -> normalised vector (d,) in [0, 1]^d of each start layout, in order; a layout
+    file is named by its stem. Raises :class:`~rgmcad.errors.UsageError` naming ``--start``
+    for an unknown or unreadable layout or one outside the free ranges."""
+    from rgmcad.scene.design_space import bounds, vector_from_values
+    from rgmcad.scene.layout_files import resolve_layout
+
+    starts: dict[str, np.ndarray] = {}
+    low, high = bounds(scenario)
+    for given in layouts:
+        try:
+            _, values = resolve_layout(scenario, given, None)
+        except RgmcadError as exc:
+            raise UsageError(OPTION, given, f"expected a layout of {scenario.name} or a layout "
+                             f"file ({exc})") from None
+        x = vector_from_values(scenario, values)
+        outside = [f"{f.name} = {v:g} not in [{lo:g}, {hi:g}]" for f, v, lo, hi, u in
+                   zip(scenario.free, values, low, high, x, strict=True)
+                   if not -1e-9 <= u <= 1 + 1e-9]  # a bound's rounding is inside
+        if outside:
+            raise UsageError(OPTION, given, "outside the free ranges of the scenario: "
+                             + ", ".join(outside))
+        name = given if given in scenario.layouts else Path(given).stem
+        while name in starts:  # two files of the same stem
+            name += "'"
+        starts[name] = np.clip(x, 0.0, 1.0)
+    return starts
+
+
+def check_starts_valid(problem, starts: dict[str, np.ndarray]) -> None:
+    """Refuse a start whose bodies overlap (the simulator would never run it)."""
+    if not starts:
+        return
+    ok = np.asarray(problem.validity(np.vstack(list(starts.values()))), dtype=bool)
+    bad = [name for name, valid in zip(starts, ok, strict=True) if not valid]
+    if bad:
+        raise UsageError(OPTION, bad[0], "its parts overlap (an invalid layout; `rgmcad "
+                         "simulate --layout` shows where): expected a valid layout")
+
+
+def starts_tag(starts: Sequence[str]) -> str:
+    """``-from-NAME[+NAME...]`` for a default run directory (empty without starts)."""
+    if not starts:
+        return ""
+    return "-from-" + "+".join(re.sub(r"[^A-Za-z0-9_.-]", "_", name) for name in starts)
+
+
+def choose_layout(recorded, result, starts: dict[str, np.ndarray] | None = None) -> dict:
+    """The layout to hand out, by simulation (:func:`rgmcad.learning.verify_layout`), with
+    the words the summary gives for where it came from."""
+    from rgmcad.learning import verify_layout
+
+    v = verify_layout(result.model, result.x, result.X, result.labels, recorded.simulate,
+                      recorded.validity, result.settings, starts=starts)
+    c = v.chosen
+    optimum = Outcome(v.optimum.outcome)
+    if not v.verified:
+        source = (f"optimum, unverified: its simulation gave {optimum} and no "
+                  "simulated layout succeeded")
+    elif c.source == "optimum":
+        source = "optimum"
+    elif optimum is not Outcome.SUCCESS:
+        source = f"{c.source} (the optimum's simulation gave {optimum})"
+    else:
+        source = f"{c.source} (more robust than the optimum under errors)"
+    return {"x": c.x, "source": source, "verified": v.verified,
+            "is_optimum": c.source == "optimum", "optimum_outcome": optimum.value,
+            "n_simulations": v.n_simulations,
+            "candidates": [{"source": t.source, "vector": [float(u) for u in t.x],
+                            "success_rate": t.success_rate, "valid_copies": t.n_valid}
+                           for t in v.candidates]}
