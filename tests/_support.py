@@ -2,8 +2,14 @@
 
 from __future__ import annotations
 
+import contextlib
+import io
+import json
+
 import numpy as np
 
+from rgmcad.cli import main
+from rgmcad.learning import LearningSettings
 from rgmcad.parts.store import PartStore
 from rgmcad.scene.bodies import load_parts, make_scene
 from rgmcad.scene.design_space import values_from_mapping
@@ -36,3 +42,20 @@ def scene_of(scenario, values=None):
     if values is None:
         values = values_from_mapping(scenario, scenario.layouts["initial"])
     return make_scene(scenario, np.asarray(values, float), parts)
+
+
+# A budget small enough for the fast suite (a few seconds per run on one core).
+TINY = LearningSettings(
+    n_initial=40, n_successes=8, exploration_max_iter=8, active_batch=5, active_max_iter=1,
+    svm_C_grid=(1.0, 10.0, 100.0), svm_gamma_grid=(1.0, 10.0), svm_class_weights=(None,),
+    mi_null_permutations=2, placement_samples=4, optimizer_max_eval=40,
+)
+
+
+def run_cli(argv) -> tuple[int, dict | None]:
+    """``rgmcad ARGV`` in this process: its exit status and its JSON output (None if none)."""
+    out = io.StringIO()
+    with contextlib.redirect_stdout(out):
+        code = main(argv)
+    text = out.getvalue().strip()
+    return code, (json.loads(text) if text else None)

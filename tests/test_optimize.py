@@ -2,8 +2,6 @@
 interruption, independence from the number of workers, refusal of a foreign run directory,
 and the pieces they are made of (run store, robustness estimator)."""
 
-import contextlib
-import io
 import json
 import shutil
 
@@ -19,23 +17,10 @@ from rgmcad.runs.robustness import EPS_GRID, ball_samples, wilson_interval
 from rgmcad.runs.store import SIMULATIONS, RunStore, run_identity
 from rgmcad.runs.workflow import optimize_scenario
 from rgmcad.sim.run import Outcome
+from tests._support import TINY, run_cli
 
 SIMPLE = "scenarios/simple.toml"
 
-# A budget small enough for the fast suite (a few seconds per run on one core).
-TINY = LearningSettings(
-    n_initial=40, n_successes=8, exploration_max_iter=8, active_batch=5, active_max_iter=1,
-    svm_C_grid=(1.0, 10.0, 100.0), svm_gamma_grid=(1.0, 10.0), svm_class_weights=(None,),
-    mi_null_permutations=2, placement_samples=4, optimizer_max_eval=40,
-)
-
-
-def _run(argv) -> tuple[int, dict | None]:
-    out = io.StringIO()
-    with contextlib.redirect_stdout(out):
-        code = main(argv)
-    text = out.getvalue().strip()
-    return code, (json.loads(text) if text else None)
 
 
 def _optimize(run, workers=1, **changes):
@@ -70,7 +55,7 @@ def test_the_pipeline_runs_on_simple_and_writes_its_outputs(reference):
     assert set(layout["poses"]) == {"track"} and "roll" in layout["poses"]["track"]
     assert summary["weakest_event"] in summary["event_probabilities"]
     # the layout file works as --layout FILE, and the chosen layout was verified
-    code, sim = _run(["simulate", SIMPLE, "--layout", str(run / "layout.json"), "--json"])
+    code, sim = run_cli(["simulate", SIMPLE, "--layout", str(run / "layout.json"), "--json"])
     assert code == 0 and np.allclose(sim["vector"], layout["vector"])
     assert summary["verified"] == (sim["outcome"] == "success")
 
@@ -138,7 +123,7 @@ def test_a_run_directory_of_another_scenario_is_refused(reference, capsys):
 
 
 def test_evaluate_json(tmp_path):
-    code, out = _run(["evaluate", SIMPLE, "--layout", "solved", "--samples", "2",
+    code, out = run_cli(["evaluate", SIMPLE, "--layout", "solved", "--samples", "2",
                       "--workers", "1", "--out", str(tmp_path / "rob.png"), "--json"])
     assert code == 0
     assert {"rho_g", "curve", "simulations"} <= set(out)
@@ -350,6 +335,6 @@ def test_the_command_line_full_option_reaches_the_learner(tmp_path, monkeypatch)
     from rgmcad.learning.factorize import GLOBAL_EVENT
 
     monkeypatch.setattr(settings_module, "budget", lambda name: TINY)
-    code, summary = _run(["optimize", SIMPLE, "--budget", "small", "--seed", "3", "--full",
+    code, summary = run_cli(["optimize", SIMPLE, "--budget", "small", "--seed", "3", "--full",
                           "--run", str(tmp_path / "run"), "--json", "-q"])
     assert code == 0 and list(summary["event_probabilities"]) == [GLOBAL_EVENT]

@@ -3,9 +3,7 @@ a start inside a success region the paper's exploration cannot find leads the re
 the returned layout is never less robust than the start, and without starts nothing changes;
 on the real simulator, the command end to end and its refusals."""
 
-import contextlib
 import hashlib
-import io
 import json
 import shutil
 import sys
@@ -25,6 +23,7 @@ from rgmcad.learning import (
     learn_and_optimize,
     verify_layout,
 )
+from tests._support import TINY, run_cli
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from test_learning import chain_oracle  # noqa: E402
@@ -143,19 +142,6 @@ def test_invalid_starts_are_left_out_of_the_exploration():
 
 SIMPLE = "scenarios/simple.toml"
 
-TINY = LearningSettings(
-    n_initial=40, n_successes=8, exploration_max_iter=8, active_batch=5, active_max_iter=1,
-    svm_C_grid=(1.0, 10.0, 100.0), svm_gamma_grid=(1.0, 10.0), svm_class_weights=(None,),
-    mi_null_permutations=2, placement_samples=4, optimizer_max_eval=40,
-)
-
-
-def _run(argv) -> tuple[int, dict | None]:
-    out = io.StringIO()
-    with contextlib.redirect_stdout(out):
-        code = main(argv)
-    text = out.getvalue().strip()
-    return code, (json.loads(text) if text else None)
 
 
 def test_the_command_starts_from_a_named_layout_in_its_own_run_directory(
@@ -169,7 +155,7 @@ def test_the_command_starts_from_a_named_layout_in_its_own_run_directory(
     monkeypatch.chdir(tmp_path)
     argv = ["optimize", str(root / SIMPLE), "--budget", "small", "--start", "solved",
             "--workers", "1", "--json", "-q"]
-    code, summary = _run(argv)
+    code, summary = run_cli(argv)
     run = tmp_path / "runs" / "simple-small-from-solved-s0"
     assert code == 0 and Path(summary["run"]).resolve() == run.resolve()
     assert summary["starts"] and "solved" in summary["starts"]
@@ -178,7 +164,7 @@ def test_the_command_starts_from_a_named_layout_in_its_own_run_directory(
     # the start was simulated first
     first = json.loads((run / "simulations.jsonl").read_text().splitlines()[0])
     assert np.allclose(first["vector"], summary["starts"]["solved"])
-    again_code, again = _run(argv)  # finished: the same result
+    again_code, again = run_cli(argv)  # finished: the same result
     assert again_code == 0 and again["vector"] == summary["vector"]
     # another start is another run: refused in the same directory
     (tmp_path / "mine.json").write_text('{"values": {"track.x": -0.09}}')
