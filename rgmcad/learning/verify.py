@@ -182,8 +182,8 @@ def _successful_starts(starts, x_opt, X, labels, simulate) -> _Starts:
         x = np.asarray(x, dtype=float)
         if np.array_equal(x, x_opt):
             continue
-        rows = [i for i in range(len(X)) if np.array_equal(X[i], x)]
-        if rows:
+        rows = np.flatnonzero((X == x).all(axis=1))
+        if len(rows):
             found.append((name, x, labels[rows[0]]))
         else:
             missing.append((name, x))
