@@ -669,3 +669,42 @@ def test_final_choice_prefers_the_layout_that_survives_placement_errors():
     assert wide.chosen.source.startswith("simulated sample #")
     assert wide.chosen.success_rate > wide.candidates[0].success_rate + 0.1
     assert wide.n_simulations == 1 + sum(c.n_valid for c in wide.candidates)
+
+
+# --- exploration step control ---------------------------------------------------------------
+
+
+def thin_chain(seed: int, d: int = 10, width: float = 0.15) -> ProductOracle:
+    """Events in a row, each needing one more coordinate in a band narrower than the paper's
+    exploration step reaches: the deeper a sample got, the more its draws undo."""
+    rng = np.random.default_rng(100 + seed)
+    events, parent = {}, ()
+    for i in range(d):
+        lo = float(rng.uniform(0, 1 - width))
+        events[f"e{i}"] = OracleEvent(parent, (i,), BoxRegion((lo,), (lo + width,)))
+        parent = (f"e{i}",)
+    return ProductOracle(d, events)
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_exploration_step_holds_the_rate_at_which_draws_keep_their_progress(seed):
+    paper = LearningSettings(exploration_keep_rate=0.0, exploration_max_iter=200)
+    fixed = explore(thin_chain(seed), paper, np.random.default_rng(seed))
+    held = explore(thin_chain(seed), paper.replace(exploration_keep_rate=0.2),
+                   np.random.default_rng(seed))
+    assert set(fixed.step_scales) == {1.0}
+    assert np.mean(fixed.keep_rates[-50:]) < 0.15  # the paper's step keeps undoing events
+    assert 0.15 <= np.mean(held.keep_rates[-50:]) <= 0.3  # held near the target
+    assert all(1 / 16 <= s <= 1.0 for s in held.step_scales)
+    assert min(held.step_scales) < 0.8
+    assert max(lab.n_success for lab in held.labels) >= max(lab.n_success for lab in fixed.labels)
+
+
+def test_exploration_step_is_the_papers_wherever_draws_keep_their_progress():
+    settings = FAST.replace(n_initial=64, n_successes=25, exploration_batch=5)
+    held = explore(small_oracle(), settings, np.random.default_rng(0))
+    paper = explore(small_oracle(), settings.replace(exploration_keep_rate=0.0),
+                    np.random.default_rng(0))
+    assert min(held.keep_rates) >= settings.exploration_keep_rate  # the premise
+    np.testing.assert_array_equal(held.X, paper.X)
+    assert set(held.step_scales) == {1.0}

@@ -106,6 +106,11 @@ def sample_mixture(
     -------
     (n, d) float
     """
+    return _draw_mixture(means, weights, variances, n, rng)[0]
+
+
+def _draw_mixture(means, weights, variances, n, rng) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`sample_mixture`, and the component each row was drawn from."""
     means = np.atleast_2d(np.asarray(means, dtype=float))
     m, d = means.shape
     w = np.asarray(weights, dtype=float)
@@ -114,7 +119,7 @@ def sample_mixture(
     var = np.broadcast_to(np.asarray(variances, dtype=float), (m, d))
     comps = rng.choice(m, size=n, p=w / w.sum())
     X = means[comps] + rng.standard_normal((n, d)) * np.sqrt(var[comps])
-    return np.clip(X, 0.0, 1.0)
+    return np.clip(X, 0.0, 1.0), comps
 
 
 def first_valid(
@@ -193,6 +198,12 @@ class Exploration:
         Candidates drawn up to the last valid one used (see :func:`first_valid`).
     n_global_successes : int
         Samples that succeeded globally.
+    keep_rates : tuple of float
+        Per mixture batch, in simulation order: the fraction of its draws that succeeded in at
+        least as many events as the sample each was drawn around.
+    step_scales : tuple of float
+        Per mixture batch: the factor on the paper's standard deviation it was drawn with
+        (1.0 throughout with ``exploration_keep_rate`` = 0).
     """
 
     X: np.ndarray
@@ -200,6 +211,8 @@ class Exploration:
     n_iterations: int
     n_validity_tests: int
     n_global_successes: int
+    keep_rates: tuple[float, ...] = ()
+    step_scales: tuple[float, ...] = ()
 
 
 def explore(
@@ -224,6 +237,13 @@ def explore(
        sample (weight proportional to its number of successful events, covariance
        ``exploration_variance * I``), and simulate its first ``exploration_batch`` valid
        draws (out of ``max_draws_factor`` times as many).
+    3. With ``exploration_keep_rate`` = r > 0 (rgmcad's step control), the standard deviation
+       of the components follows how often a batch's draws *keep* their progress (succeed
+       in at least as many events as the sample they were drawn around): after a batch
+       where a fraction p kept it, the step is multiplied by ``2 ** (p - r)``, never above
+       the paper's step nor below 1/16 of it. Why: at the paper's fixed step (0.1 per
+       coordinate, a jump of length 0.1 sqrt(d)) most draws in many dimensions undo events
+       that already worked, and exploration stalls (docs/decisions.md, "Exploration step").
 
     When no selected sample has any successful event (the paper's weights would be 0/0),
     the iteration continues the Sobol sequence instead: with no partial success to grow
@@ -283,14 +303,24 @@ def explore(
     labels.extend(simulate(X0) if len(X0) else [])
     n_succ = [lab.n_success for lab in labels]
     n_global = sum(lab.success for lab in labels)
-    in_flight: deque[tuple[np.ndarray, Callable[[], Sequence[Label]]]] = deque()
+    in_flight: deque[tuple[np.ndarray, np.ndarray | None, Callable[[], Sequence[Label]]]] = deque()
     k = 0
     drawing = True
     mixture_tested = mixture_valid = 0  # to size the validity calls (not the result)
+    log_scale = 0.0  # log of the factor on the paper's standard deviation (step control)
+    keep_rates: list[float] = []
+    step_scales: list[float] = []
     while True:
         while in_flight and (len(in_flight) > s.exploration_lag or not drawing):
-            Xk, wait = in_flight.popleft()
+            Xk, parent_counts, wait = in_flight.popleft()
             new = list(wait())
+            if parent_counts is not None:
+                kept = float(np.mean([lab.n_success >= c
+                                      for lab, c in zip(new, parent_counts, strict=True)]))
+                keep_rates.append(kept)
+                if s.exploration_keep_rate > 0:
+                    change = np.log(2.0) * (kept - s.exploration_keep_rate)
+                    log_scale = float(np.clip(log_scale + change, _MIN_LOG_STEP_SCALE, 0.0))
             Xs.append(Xk)
             labels.extend(new)
             n_succ.extend(lab.n_success for lab in new)
@@ -304,13 +334,21 @@ def explore(
         counts = np.asarray(n_succ, dtype=float)
         top = np.argsort(-counts, kind="stable")[: min(s.n_successes, len(counts))]
         w = counts[top]
+        parent_counts = None
         if w.sum() > 0:
-            cands = sample_mixture(
-                np.vstack(Xs)[top], w, s.exploration_variance,
+            scale = float(np.exp(log_scale))
+            cands, comps = _draw_mixture(
+                np.vstack(Xs)[top], w, s.exploration_variance * scale**2,
                 s.max_draws_factor * s.exploration_batch, rng,
             )
             rate = mixture_valid / mixture_tested if mixture_tested else 1.0
-            Xk, nt = first_valid(cands, problem.validity, s.exploration_batch, rate=rate)
+            # the component index rides along as a last column, unseen by the validity test
+            tagged, nt = first_valid(np.column_stack([cands, comps]),
+                                     lambda B: problem.validity(np.ascontiguousarray(B[:, :-1])),
+                                     s.exploration_batch, rate=rate)
+            Xk = np.ascontiguousarray(tagged[:, :-1])
+            parent_counts = w[tagged[:, -1].astype(int)]
+            step_scales.append(scale)
             mixture_tested += nt
             mixture_valid += len(Xk)
         else:
@@ -320,14 +358,18 @@ def explore(
         if len(Xk) == 0:
             logger.warning("exploration iteration %d: no valid candidate", k)
             continue
-        in_flight.append((Xk, submit(Xk)))
+        in_flight.append((Xk, parent_counts, submit(Xk)))
     X = stack_rows(Xs, d)
     if n_global < s.n_successes:
         logger.info(
             "exploration stopped after %d iterations with %d/%d global successes",
             k, n_global, s.n_successes,
         )
-    return Exploration(X, tuple(labels), k, n_tested, int(n_global))
+    return Exploration(X, tuple(labels), k, n_tested, int(n_global), tuple(keep_rates),
+                       tuple(step_scales))
+
+
+_MIN_LOG_STEP_SCALE = float(np.log(1 / 16))
 
 
 def _sobol_valid(

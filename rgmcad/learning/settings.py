@@ -55,6 +55,15 @@ class LearningSettings:
         sigma of Eq. 1: each mixture component has covariance ``sigma * I``. It is a
         **variance** (standard deviation 0.1), as in the authors' code; the paper's notation
         reads like a scale (SPEC section 9, item 2).
+    exploration_keep_rate : float, default 0.2
+        Added by rgmcad: target fraction of an exploration batch's draws that keep their
+        progress (succeed in at least as many events as the sample they were drawn around).
+        Above 0, the mixtures' step shrinks while fewer draws keep it and grows back (never
+        past ``exploration_variance``) while more do (:func:`~.sampling.explore`); 0 is the
+        paper's fixed step. Why: in many dimensions the paper's step undoes events that
+        already worked and exploration stalls; where at least this fraction keeps its
+        progress (every shipped scenario but teapot) the run is the paper's, unchanged. See
+        docs/decisions.md, "Exploration step".
     sobol_scramble : bool, default True
         Scramble the Sobol sequence with the run's rng. The authors used an unscrambled
         sequence, so all their runs started from the same points; scrambling keeps the
@@ -252,6 +261,7 @@ class LearningSettings:
     exploration_max_iter: int = 500
     exploration_lag: int = 1
     exploration_variance: float = 0.01
+    exploration_keep_rate: float = 0.2
     sobol_scramble: bool = True
     max_draws_factor: int = 100
     # Classifier
@@ -320,8 +330,8 @@ class LearningSettings:
                 raise ValueError(
                     f"LearningSettings.{name} must be a non-negative integer, got {value!r}"
                 )
-        for name in ("accuracy_target", "quasi_deterministic_rate", "mi_relative_threshold",
-                     "parent_probability_min", "tolerance_ratio"):
+        for name in ("accuracy_target", "quasi_deterministic_rate", "exploration_keep_rate",
+                     "mi_relative_threshold", "parent_probability_min", "tolerance_ratio"):
             value = getattr(self, name)
             if not 0.0 <= value <= 1.0:
                 raise ValueError(f"LearningSettings.{name} must lie in [0, 1], got {value!r}")
