@@ -19,7 +19,8 @@ def run(args) -> int:
     scenario = load_scenario_arg(args)
     say(f"{scenario.name}: {scenario.description}")
     bodies = scenario.body_objects()
-    say(f"\nobjects ({len(bodies)} parts, {len(scenario.runs)} domino runs):")
+    n_runs = len(scenario.runs)
+    say(f"\nobjects ({len(bodies)} parts, {n_runs} domino run{'' if n_runs == 1 else 's'}):")
     rows = []
     for obj in scenario.objects.values():
         if obj.run is not None:

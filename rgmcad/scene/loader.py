@@ -138,6 +138,7 @@ def _parse(data, where, path, parts_dir) -> Scenario:
         check_name(obj_name, where, key)
         raw = expect(raw, dict, where, key)
         check_keys(raw, OBJECT_KEYS, where, key)
+        _check_note(raw, where, key)
         part = expect(raw.get("part", None), str, where, f"{key}.part")
         if part == FRAME:
             params = None
@@ -169,6 +170,7 @@ def _parse(data, where, path, parts_dir) -> Scenario:
             raise ScenarioError(where, key, "a run cannot share its name with an object")
         raw = expect(raw, dict, where, key)
         check_keys(raw, RUN_KEYS, where, key)
+        _check_note(raw, where, key)
         pose = _parse_pose(raw.get("pose", {}), where, f"{key}.pose")
         objects[run_name] = SceneObject(run_name, FRAME, None, Physical(),
                                         _parse_parent(raw, where, key), pose)
@@ -204,6 +206,12 @@ def _parse(data, where, path, parts_dir) -> Scenario:
 def _parse_parent(raw, where, key) -> str | None:
     parent = raw.get("parent")
     return None if parent is None else expect(parent, str, where, f"{key}.parent")
+
+
+def _check_note(raw, where, key) -> None:
+    """``note``: free text for the reader of the file (read nowhere else)."""
+    if "note" in raw:
+        expect(raw["note"], str, where, f"{key}.note")
 
 
 def _note_sizes(params, where, key) -> None:
