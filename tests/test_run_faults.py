@@ -53,9 +53,9 @@ def _cli(argv) -> tuple[int, str, str]:
 # --- kill -9 ---------------------------------------------------------------------------------
 
 
-def _optimize_command(run: Path) -> list[str]:
+def _optimize_command(run: Path, extra: tuple[str, ...] = ()) -> list[str]:
     return [sys.executable, "-m", "rgmcad.cli", "optimize", SIMPLE, "--budget", "small",
-            "--workers", "2", "--run", str(run), "--json"]
+            "--workers", "2", "--run", str(run), "--json", *extra]
 
 
 def _stat(pid: int) -> list[str] | None:
@@ -81,24 +81,40 @@ def _running(pid: int, start: str) -> bool:
     return fields is not None and fields[19] == start and fields[0] not in ("Z", "X")
 
 
-@pytest.fixture(scope="module")
-def small_run(tmp_path_factory):
-    """``rgmcad optimize simple --budget small --workers 2``, uninterrupted: (run dir, the
-    JSON it printed)."""
+def _uninterrupted(tmp_path_factory, extra=()):
     run = tmp_path_factory.mktemp("uninterrupted") / "run"
-    done = subprocess.run(_optimize_command(run), cwd=ROOT, capture_output=True, text=True,
-                          timeout=300)
+    done = subprocess.run(_optimize_command(run, extra), cwd=ROOT, capture_output=True,
+                          text=True, timeout=300)
     assert done.returncode == 0, done.stderr[-2000:]
     return run, json.loads(done.stdout)
 
 
+@pytest.fixture(scope="module")
+def small_run(tmp_path_factory):
+    """``rgmcad optimize simple --budget small --workers 2``, uninterrupted: (run dir, the
+    JSON it printed)."""
+    return _uninterrupted(tmp_path_factory)
+
+
+START = ("--start", "solved")
+
+
+@pytest.fixture(scope="module")
+def small_start_run(tmp_path_factory):
+    """The same with ``--start solved``."""
+    return _uninterrupted(tmp_path_factory, START)
+
+
 @pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="reads processes in /proc")
-def test_kill_9_of_optimize_then_the_same_command_resumes_to_the_same_result(small_run,
-                                                                             tmp_path):
-    _, reference = small_run
+@pytest.mark.parametrize("uninterrupted, extra", [("small_run", ()),
+                                                  ("small_start_run", START)],
+                         ids=["plain", "with-start"])
+def test_kill_9_of_optimize_then_the_same_command_resumes_to_the_same_result(
+        uninterrupted, extra, request, tmp_path):
+    _, reference = request.getfixturevalue(uninterrupted)
     run = tmp_path / "run"
-    killed = subprocess.Popen(_optimize_command(run), cwd=ROOT, stdout=subprocess.DEVNULL,
-                              stderr=subprocess.DEVNULL)
+    killed = subprocess.Popen(_optimize_command(run, extra), cwd=ROOT,
+                              stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     workers: dict[int, str] = {}
     try:
         journal = run / SIMULATIONS
@@ -111,8 +127,8 @@ def test_kill_9_of_optimize_then_the_same_command_resumes_to_the_same_result(sma
         os.kill(killed.pid, signal.SIGKILL)  # the main process only, as `kill -9 PID` does
         killed.wait()
         done_before = journal.read_bytes().count(b"\n")
-        resumed = subprocess.run(_optimize_command(run), cwd=ROOT, capture_output=True,
-                                 text=True, timeout=300)
+        resumed = subprocess.run(_optimize_command(run, extra), cwd=ROOT,
+                                 capture_output=True, text=True, timeout=300)
         assert resumed.returncode == 0, resumed.stderr[-2000:]
         summary = json.loads(resumed.stdout)
         assert summary["vector"] == reference["vector"]
