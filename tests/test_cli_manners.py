@@ -293,19 +293,22 @@ def test_readme_optimize_examples_name_the_directories_they_write():
     from rgmcad.shipped import scenario_path
 
     text = (ROOT / "README.md").read_text()
-    block = text.split("## Optimising a layout")[1].split("```sh")[1].split("```")[0]
+    section = text.split("## Optimising a layout")[1].split("\n## ")[0]
+    blocks = [part.split("```")[0] for part in section.split("```sh")[1:]]
+    assert len(blocks) >= 2
+    lines = [line for block in blocks for line in block.strip().splitlines()]
     written = set()
-    for line in block.strip().splitlines():
+    for line in lines:
         command, _, comment = line.partition("#")
         words = shlex.split(command)[2:]  # after "uv run"
         args = build_parser().parse_args(words[1:])
         if args.command == "optimize":
             name = tomllib.loads(scenario_path(args.scenario).read_text())["name"]
             where = args.run_dir or str(default_run_dir(name, args.budget, args.seed,
-                                                        args.batch))
+                                                        args.batch, args.full, args.start))
             written.add(where.rstrip("/"))
             if comment.strip().startswith("runs/"):
                 assert comment.split()[0].rstrip("/") == where, line
         elif getattr(args, "layout", None) and args.layout.startswith("runs/"):
             assert str(Path(args.layout).parent) in written, line
-    assert any("small" in w for w in written)
+    assert any("small" in w for w in written) and any("-from-" in w for w in written)
