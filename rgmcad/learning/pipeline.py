@@ -217,9 +217,11 @@ def learn_and_optimize(
         problem, settings, rng, simulate=lambda X: record(X, "exploration"),
         submit=lambda X: record.submit(X, "exploration"), starts=starts,
     )
+    smallest_step = min(exploration.step_scales, default=1.0)
     report(
         "exploration",
-        f"{len(exploration.labels)} samples, {exploration.n_global_successes} global successes",
+        f"{len(exploration.labels)} samples, {exploration.n_global_successes} global successes"
+        + (f"; step down to {smallest_step:.2f} of the paper's" if smallest_step < 1 else ""),
     )
 
     fit = fit_spd(
