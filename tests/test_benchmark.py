@@ -15,17 +15,11 @@ from pathlib import Path
 import pytest
 
 from rgmcad.cli import main
-from rgmcad.learning import LearningSettings
 from rgmcad.runs.benchmark import PLOT, TABLE_JSON, TABLE_MD, run_benchmark
+from tests._support import TINY
 
 ROOT = Path(__file__).resolve().parent.parent
 SIMPLE = "scenarios/simple.toml"
-
-TINY = LearningSettings(  # tests/test_run_faults.py's: a whole run in seconds on one core
-    n_initial=40, n_successes=8, exploration_max_iter=8, active_batch=5, active_max_iter=1,
-    svm_C_grid=(1.0, 10.0, 100.0), svm_gamma_grid=(1.0, 10.0), svm_class_weights=(None,),
-    mi_null_permutations=2, placement_samples=4, optimizer_max_eval=40,
-)
 
 
 def _command(out: Path) -> list[str]:

@@ -22,20 +22,13 @@ import pytest
 
 from rgmcad.cli import main
 from rgmcad.errors import RunDirectoryError, UsageError
-from rgmcad.learning import LearningSettings
 from rgmcad.runs.executor import PoolExecutor, parent_only
 from rgmcad.runs.store import REJECTED, RESULT, SETTINGS, SIMULATIONS, RunStore, run_identity
 from rgmcad.runs.workflow import evaluate_layout, optimize_scenario
+from tests._support import TINY
 
 ROOT = Path(__file__).resolve().parent.parent
 SIMPLE = "scenarios/simple.toml"
-
-# The tiny settings of tests/test_optimize.py: a whole run in a few seconds on one core.
-TINY = LearningSettings(
-    n_initial=40, n_successes=8, exploration_max_iter=8, active_batch=5, active_max_iter=1,
-    svm_C_grid=(1.0, 10.0, 100.0), svm_gamma_grid=(1.0, 10.0), svm_class_weights=(None,),
-    mi_null_permutations=2, placement_samples=4, optimizer_max_eval=40,
-)
 
 
 def _optimize(run, **changes):

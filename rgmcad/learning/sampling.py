@@ -33,6 +33,8 @@ SimulateFn = Callable[[np.ndarray], list[Label]]
 ValidityFn = Callable[[np.ndarray], np.ndarray]
 SubmitFn = Callable[[np.ndarray], Callable[[], Sequence[Label]]]
 
+_MIN_LOG_STEP_SCALE = float(np.log(1 / 16))  # the exploration step's floor: 1/16 of the paper's
+
 
 class SobolStream:
     """Consecutive blocks of one Sobol sequence in ``[0, 1]^d``.
@@ -367,9 +369,6 @@ def explore(
         )
     return Exploration(X, tuple(labels), k, n_tested, int(n_global), tuple(keep_rates),
                        tuple(step_scales))
-
-
-_MIN_LOG_STEP_SCALE = float(np.log(1 / 16))
 
 
 def _sobol_valid(
