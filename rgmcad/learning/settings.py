@@ -245,6 +245,15 @@ class LearningSettings:
     verify_noise : float, default 0.05
         With ``error_radius`` 0: standard deviation (normalised units) of those placement
         errors, the same as ``placement_noise`` by default.
+    centering_simulations : int, default 0
+        Added by rgmcad: at most this many simulations to centre the chosen layout in its
+        success region by Gaussian adaptation (:mod:`rgmcad.learning.centering`); the centre
+        replaces it only if it does better under the final choice's errors. 0: none.
+        Needs ``verify_samples`` > 0.
+    centering_batch : int, default 16
+        Valid layouts simulated per centring step.
+    centering_hit_rate : float, default 0.3
+        The fraction of successes the centring's radius is adapted to, in (0, 1).
     tolerance_ratio : float, default 0.9
         Placement tolerance: how far each coordinate may move before the predicted success
         probability drops below ``tolerance_ratio`` times its value at the optimum.
@@ -305,6 +314,9 @@ class LearningSettings:
     verify_candidates: int = 4
     verify_samples: int = 32
     verify_noise: float = 0.05
+    centering_simulations: int = 0
+    centering_batch: int = 16
+    centering_hit_rate: float = 0.3
     # Placement tolerance
     tolerance_ratio: float = 0.9
     tolerance_step: float = 0.005
@@ -315,7 +327,7 @@ class LearningSettings:
             "n_initial", "n_successes", "exploration_batch", "max_draws_factor", "cv_folds",
             "search_halving", "search_min_train",
             "calibration_folds", "active_batch", "mi_neighbors", "optimizer_max_eval",
-            "placement_samples", "verify_candidates", "refine_starts",
+            "placement_samples", "verify_candidates", "refine_starts", "centering_batch",
         )
         for name in positive_ints:
             value = getattr(self, name)
@@ -324,7 +336,8 @@ class LearningSettings:
                     f"LearningSettings.{name} must be a positive integer, got {value!r}"
                 )
         for name in ("exploration_max_iter", "exploration_lag", "active_max_iter",
-                     "tolerance_bisections", "mi_null_permutations", "verify_samples"):
+                     "tolerance_bisections", "mi_null_permutations", "verify_samples",
+                     "centering_simulations"):
             value = getattr(self, name)
             if int(value) != value or value < 0:
                 raise ValueError(
@@ -349,6 +362,12 @@ class LearningSettings:
                 "LearningSettings.smooth_min_alpha, constraint_tolerance and placement_noise "
                 "must be >= 0"
             )
+        if not 0.0 < self.centering_hit_rate < 1.0:
+            raise ValueError("LearningSettings.centering_hit_rate must lie in (0, 1), got "
+                             f"{self.centering_hit_rate!r}")
+        if self.centering_simulations and not self.verify_samples:
+            raise ValueError("LearningSettings.centering_simulations needs verify_samples > 0 "
+                             "(the centre is judged by the final choice's errors)")
         if not 0.0 <= self.error_radius <= 2.0:
             raise ValueError(
                 f"LearningSettings.error_radius must lie in [0, 2], got {self.error_radius!r}"

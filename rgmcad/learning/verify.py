@@ -17,6 +17,10 @@ Start layouts (the user's own, ``starts``) that succeeded in their own simulatio
 candidates, right after the optimum: the layout returned is then at least as good as the
 user's by this measure. With ``verify_samples = 0`` the choice is the
 paper's: the optimum if it succeeds, else the best predicted simulated success.
+
+With ``centering_simulations`` > 0 the layout chosen is then centred by simulation
+(:mod:`rgmcad.learning.centering`); the centre replaces it only if the centre succeeds in its
+own simulation and its success rate under the same errors is higher.
 """
 
 from __future__ import annotations
@@ -26,6 +30,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .centering import Centering, center_layout
 from .errors import design_from_settings, expected_success
 from .factorize import SPDModel
 from .oracles import Label
@@ -55,6 +60,9 @@ class Candidate:
         Success rate of its valid perturbed copies (nan when not tested).
     n_valid : int
         Valid perturbed copies simulated.
+    centered : bool
+        Moved by the centring (:mod:`rgmcad.learning.centering`) from the layout ``source``
+        names.
     """
 
     x: np.ndarray
@@ -62,6 +70,7 @@ class Candidate:
     outcome: str
     success_rate: float = float("nan")
     n_valid: int = 0
+    centered: bool = False
 
 
 @dataclass(frozen=True)
@@ -80,6 +89,9 @@ class Verification:
         Every candidate tested under placement errors, in order.
     n_simulations : int
         Simulations this step ran (or replayed).
+    centering : Centering or None
+        The centring's trajectory, when ``settings.centering_simulations`` > 0 and a layout
+        was verified.
     """
 
     chosen: Candidate
@@ -87,6 +99,7 @@ class Verification:
     optimum: Candidate
     candidates: tuple[Candidate, ...]
     n_simulations: int
+    centering: Centering | None = None
 
 
 def verify_layout(
@@ -98,6 +111,7 @@ def verify_layout(
     validity: Callable[[np.ndarray], np.ndarray],
     settings: LearningSettings,
     starts: Mapping[str, np.ndarray] | None = None,
+    rng: np.random.Generator | None = None,
 ) -> Verification:
     """Pick the layout to return (see the module docstring).
 
@@ -114,11 +128,13 @@ def verify_layout(
     validity : callable
         ``validity(P) -> (k,) bool``.
     settings : LearningSettings
-        ``verify_candidates``, ``verify_samples``, ``verify_noise``.
+        ``verify_candidates``, ``verify_samples``, ``verify_noise``, ``centering_*``.
     starts : mapping of name to (d,) float, optional
         The user's start layouts. Each one whose simulation among ``X`` succeeded (one not
         among ``X`` is simulated here) is a candidate after the optimum, beside the
         ``verify_candidates``.
+    rng : numpy.random.Generator, optional
+        The centring's draws; needed when ``settings.centering_simulations`` > 0.
     """
     x_opt = np.asarray(x_opt, dtype=float)
     X = np.asarray(X, dtype=float).reshape(len(labels), -1)
@@ -143,10 +159,40 @@ def verify_layout(
     ]
     if not candidates:
         return Verification(optimum, False, optimum, (), n_sims)
-    if settings.verify_samples == 0 or len(candidates) == 1:
+    if settings.verify_samples == 0:
         return Verification(candidates[0], True, optimum, (), n_sims)
 
     design = design_from_settings(d, settings, settings.verify_samples, settings.verify_noise)
+    chosen, tested = candidates[0], []
+    if len(candidates) > 1:
+        tested, n_tested = _scored(candidates, design, simulate, validity)
+        n_sims += n_tested
+        chosen = tested[max(range(len(tested)), key=lambda k: (tested[k].success_rate, -k))]
+    if settings.centering_simulations == 0:
+        return Verification(chosen, True, optimum, tuple(tested), n_sims)
+    if rng is None:
+        raise ValueError("verify_layout: centring (settings.centering_simulations > 0) "
+                         "needs rng")
+    centring = center_layout(chosen.x, simulate, validity, rng,
+                             simulations=settings.centering_simulations,
+                             batch=settings.centering_batch,
+                             hit_rate=settings.centering_hit_rate)
+    n_sims += centring.n_simulations
+    if np.array_equal(centring.x, chosen.x) or not simulate(centring.x[None, :])[0].success:
+        return Verification(chosen, True, optimum, tuple(tested), n_sims + 1, centring)
+    # the centre against the layout it came from, at the same errors (common to both)
+    pending = ([] if tested else [chosen]) + [
+        Candidate(centring.x, chosen.source, "success", centered=True)]
+    scored, n_tested = _scored(pending, design, simulate, validity)
+    before, centre = (chosen, *scored) if tested else scored
+    tested = [*(tested or [before]), centre]
+    winner = centre if centre.success_rate > before.success_rate else before
+    return Verification(winner, True, optimum, tuple(tested), n_sims + 1 + n_tested, centring)
+
+
+def _scored(candidates, design, simulate, validity) -> tuple[list[Candidate], int]:
+    """Each candidate with its success rate under the design's errors (common to all), and
+    the simulations that took."""
     errors = [design.at(c.x) for c in candidates]
     # Gaussian copies outside the design space are clipped onto it; ball copies are kept
     # inside by design.at (raw weight 0 for the few it cannot)
@@ -156,16 +202,15 @@ def verify_layout(
     ok = raw > 0
     ok[ok] = np.asarray(validity(P[ok]), dtype=bool)  # invalid copies are left out
     results = iter(simulate(P[ok]))
-    n_sims += int(ok.sum())
     tested = []
     for c, block_ok, block_raw in zip(candidates, np.split(ok, len(candidates)),
                                       np.split(raw, len(candidates)), strict=True):
         wins = np.zeros(len(block_ok))
         wins[block_ok] = [next(results).success for _ in range(int(block_ok.sum()))]
         rate = float(design.normalized(block_raw * block_ok) @ wins)
-        tested.append(Candidate(c.x, c.source, c.outcome, rate, int(block_ok.sum())))
-    best = max(range(len(tested)), key=lambda k: (tested[k].success_rate, -k))
-    return Verification(tested[best], True, optimum, tuple(tested), n_sims)
+        tested.append(Candidate(c.x, c.source, c.outcome, rate, int(block_ok.sum()),
+                                c.centered))
+    return tested, int(ok.sum())
 
 
 @dataclass(frozen=True)

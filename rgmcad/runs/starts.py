@@ -20,6 +20,7 @@ from rgmcad.sim.run import Outcome
 __all__ = ["resolve_starts", "check_starts_valid", "starts_tag", "choose_layout"]
 
 OPTION = "--start"
+_CENTERING_STREAM = 2
 
 
 def resolve_starts(scenario, layouts: Sequence[str]) -> dict[str, np.ndarray]:
@@ -69,13 +70,16 @@ def starts_tag(starts: Sequence[str]) -> str:
     return "-from-" + "+".join(re.sub(r"[^A-Za-z0-9_.-]", "_", name) for name in starts)
 
 
-def choose_layout(recorded, result, starts: dict[str, np.ndarray] | None = None) -> dict:
+def choose_layout(recorded, result, starts: dict[str, np.ndarray] | None = None,
+                  seed: int = 0) -> dict:
     """The layout to hand out, by simulation (:func:`rgmcad.learning.verify_layout`), with
-    the words the summary gives for where it came from."""
+    the words the summary gives for where it came from. ``seed`` seeds the centring (a
+    stream of its own: the learning's draws do not depend on it)."""
     from rgmcad.learning import verify_layout
 
     v = verify_layout(result.model, result.x, result.X, result.labels, recorded.simulate,
-                      recorded.validity, result.settings, starts=starts)
+                      recorded.validity, result.settings, starts=starts,
+                      rng=np.random.default_rng([seed, _CENTERING_STREAM]))
     c = v.chosen
     optimum = Outcome(v.optimum.outcome)
     if not v.verified:
@@ -87,9 +91,19 @@ def choose_layout(recorded, result, starts: dict[str, np.ndarray] | None = None)
         source = f"{c.source} (the optimum's simulation gave {optimum})"
     else:
         source = f"{c.source} (more robust than the optimum under errors)"
+    if c.centered:
+        before = next(t for t in v.candidates if t.source == c.source and not t.centered)
+        source += (f", centred by simulation (success under errors {before.success_rate:.2f}"
+                   f" -> {c.success_rate:.2f})")
+    centering = None if v.centering is None else {
+        "radii": [float(r) for r in v.centering.radii],
+        "hit_rates": [float(p) for p in v.centering.hit_rates],
+        "simulations": v.centering.n_simulations, "kept": c.centered}
     return {"x": c.x, "source": source, "verified": v.verified,
-            "is_optimum": c.source == "optimum", "optimum_outcome": optimum.value,
-            "n_simulations": v.n_simulations,
-            "candidates": [{"source": t.source, "vector": [float(u) for u in t.x],
+            "is_optimum": c.source == "optimum" and not c.centered,
+            "optimum_outcome": optimum.value, "n_simulations": v.n_simulations,
+            "centering": centering,
+            "candidates": [{"source": t.source + (", centred" if t.centered else ""),
+                            "vector": [float(u) for u in t.x],
                             "success_rate": t.success_rate, "valid_copies": t.n_valid}
                            for t in v.candidates]}

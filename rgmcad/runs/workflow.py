@@ -213,7 +213,7 @@ def optimize_scenario(
                     learner_problem, settings, seed, on_progress=lambda p: progress.stage(p.stage),
                     starts=np.vstack(list(start_vectors.values())) if start_vectors else None)
             progress.stage("verification")
-            chosen = choose_layout(learner_problem, result, start_vectors)
+            chosen = choose_layout(learner_problem, result, start_vectors, seed)
             robustness = None
             if robustness_samples:
                 from rgmcad.runs.robustness import figures, robustness_on
@@ -325,6 +325,7 @@ def _write_outputs(scenario, store, recorded, result, chosen, wall_time, seed, b
         "simulations_by_stage": {**result.n_simulations,
                                  "verification": chosen["n_simulations"]},
         "verification": chosen["candidates"],
+        "centering": chosen["centering"],
         "verify_noise": result.settings.verify_noise, "error_radius": result.settings.error_radius,
         "robustness": robustness,
         "successes": int(n_success),
