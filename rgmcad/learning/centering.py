@@ -94,7 +94,6 @@ def center_layout(
         The share of the way to the successes' mean the centre moves per batch.
     """
     m = np.asarray(x0, dtype=float).copy()
-    d = len(m)
     r = float(np.clip(radius, _MIN_RADIUS, _MAX_RADIUS))
     centres, radii, rates = [m.copy()], [], []
     n_sims = 0
