@@ -115,36 +115,49 @@ def test_the_final_choice_keeps_the_centre_when_it_does_better():
     simulate = Counting(oracle)
     x_edge = np.array([0.5, 0.79])  # the only candidate, 0.01 inside the edge
     v = _choose(settings, x_edge, oracle, simulate)
-    before, centre = v.candidates
+    before, centre = v.centering_check
     assert not before.centered and centre.centered and v.chosen is centre
+    assert np.array_equal(before.x, x_edge) and v.candidates == ()
     assert centre.source == before.source == "optimum"
     assert centre.success_rate > before.success_rate + 0.05
     assert np.linalg.norm(centre.x - 0.5) < 0.2
-    assert v.centering is not None
     # the optimum's own simulation, the centring, the centre's own simulation, the copies
     assert v.n_simulations == (1 + v.centering.n_simulations + 1
                                + before.n_valid + centre.n_valid) == len(simulate.layouts)
+    assert before.n_valid + centre.n_valid > 200  # 128 errors each, a few outside
 
 
-def test_a_centre_that_does_worse_is_not_kept():
-    # the chosen layout is already in the middle: the centre is another point of the
-    # region, judged at the same errors; a tie or less keeps the chosen layout
+def test_a_centre_that_does_no_better_is_not_kept():
+    # a point of the region that is deep already, and a second candidate deeper still: the
+    # choice among candidates comes first, then its centre must beat it at the same errors
     oracle = ball_oracle(2)
-    settings = LearningSettings(verify_samples=32, error_radius=1.0, centering_simulations=64)
-    for x in (np.array([0.5, 0.5]), np.array([0.52, 0.47])):
-        v = _choose(settings, x, oracle)
+    settings = LearningSettings(verify_samples=32, error_radius=1.0, centering_simulations=64,
+                                verify_candidates=2)
+    from test_learning import disc_model
+
+    X = np.array([[0.52, 0.47], [0.6, 0.6]])
+    labels = oracle.simulate(X)
+    for x_opt in (np.array([0.5, 0.5]), np.array([0.52, 0.47])):
+        v = verify_layout(disc_model(), x_opt, X, labels, oracle.simulate, oracle.validity,
+                          settings, rng=np.random.default_rng(1))
+        best = max(v.candidates, key=lambda c: c.success_rate)
+        if v.centering_check is None:
+            assert v.chosen is best
+            continue
+        before, centre = v.centering_check
+        assert np.array_equal(before.x, best.x)
         if v.chosen.centered:
-            assert v.chosen.success_rate > v.candidates[0].success_rate
+            assert centre.success_rate > before.success_rate
         else:
-            assert np.array_equal(v.chosen.x, x)
-            assert all(c.success_rate <= v.chosen.success_rate for c in v.candidates)
+            assert v.chosen is best and centre.success_rate <= before.success_rate
 
 
 def test_without_centring_the_choice_is_unchanged():
     oracle = ball_oracle(2)
     settings = LearningSettings(verify_samples=32, error_radius=1.0)
     v = _choose(settings, np.array([0.5, 0.79]), oracle)
-    assert v.centering is None and v.candidates == () and v.chosen.source == "optimum"
+    assert v.centering is None and v.centering_check is None
+    assert v.candidates == () and v.chosen.source == "optimum"
 
 
 @pytest.mark.parametrize(("changes", "word"), [

@@ -254,6 +254,9 @@ class LearningSettings:
         Valid layouts simulated per centring step.
     centering_hit_rate : float, default 0.3
         The fraction of successes the centring's radius is adapted to, in (0, 1).
+    centering_check_samples : int, default 128
+        Errors (the final choice's kind) at which the centre and the layout it came from
+        are both simulated; the centre replaces that layout only if it succeeds more often.
     tolerance_ratio : float, default 0.9
         Placement tolerance: how far each coordinate may move before the predicted success
         probability drops below ``tolerance_ratio`` times its value at the optimum.
@@ -317,6 +320,7 @@ class LearningSettings:
     centering_simulations: int = 0
     centering_batch: int = 16
     centering_hit_rate: float = 0.3
+    centering_check_samples: int = 128
     # Placement tolerance
     tolerance_ratio: float = 0.9
     tolerance_step: float = 0.005
@@ -328,6 +332,7 @@ class LearningSettings:
             "search_halving", "search_min_train",
             "calibration_folds", "active_batch", "mi_neighbors", "optimizer_max_eval",
             "placement_samples", "verify_candidates", "refine_starts", "centering_batch",
+            "centering_check_samples",
         )
         for name in positive_ints:
             value = getattr(self, name)

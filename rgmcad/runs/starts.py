@@ -91,19 +91,24 @@ def choose_layout(recorded, result, starts: dict[str, np.ndarray] | None = None,
         source = f"{c.source} (the optimum's simulation gave {optimum})"
     else:
         source = f"{c.source} (more robust than the optimum under errors)"
+    centering = None
+    if v.centering is not None:
+        pair = v.centering_check
+        centering = {"radii": [float(r) for r in v.centering.radii],
+                     "hit_rates": [float(p) for p in v.centering.hit_rates],
+                     "simulations": v.centering.n_simulations, "kept": c.centered,
+                     "check": None if pair is None else {
+                         "errors": result.settings.centering_check_samples,
+                         "before": pair[0].success_rate, "centre": pair[1].success_rate,
+                         "valid_copies": [pair[0].n_valid, pair[1].n_valid],
+                         "vector": [float(u) for u in pair[1].x]}}
     if c.centered:
-        before = next(t for t in v.candidates if t.source == c.source and not t.centered)
-        source += (f", centred by simulation (success under errors {before.success_rate:.2f}"
-                   f" -> {c.success_rate:.2f})")
-    centering = None if v.centering is None else {
-        "radii": [float(r) for r in v.centering.radii],
-        "hit_rates": [float(p) for p in v.centering.hit_rates],
-        "simulations": v.centering.n_simulations, "kept": c.centered}
+        source += (f", centred by simulation (success under errors "
+                   f"{v.centering_check[0].success_rate:.2f} -> {c.success_rate:.2f})")
     return {"x": c.x, "source": source, "verified": v.verified,
             "is_optimum": c.source == "optimum" and not c.centered,
             "optimum_outcome": optimum.value, "n_simulations": v.n_simulations,
             "centering": centering,
-            "candidates": [{"source": t.source + (", centred" if t.centered else ""),
-                            "vector": [float(u) for u in t.x],
+            "candidates": [{"source": t.source, "vector": [float(u) for u in t.x],
                             "success_rate": t.success_rate, "valid_copies": t.n_valid}
                            for t in v.candidates]}
