@@ -154,7 +154,7 @@ def test_a_centre_that_does_no_better_is_not_kept():
 
 def test_without_centring_the_choice_is_unchanged():
     oracle = ball_oracle(2)
-    settings = LearningSettings(verify_samples=32, error_radius=1.0)
+    settings = LearningSettings(verify_samples=32, error_radius=1.0, centering_simulations=0)
     v = _choose(settings, np.array([0.5, 0.79]), oracle)
     assert v.centering is None and v.centering_check is None
     assert v.candidates == () and v.chosen.source == "optimum"

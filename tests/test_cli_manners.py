@@ -248,7 +248,8 @@ def tiny_budget(monkeypatch):
     tiny = LearningSettings(
         n_initial=40, n_successes=8, exploration_max_iter=8, active_batch=5, active_max_iter=1,
         svm_C_grid=(1.0, 10.0, 100.0), svm_gamma_grid=(1.0, 10.0), svm_class_weights=(None,),
-        mi_null_permutations=2, placement_samples=4, optimizer_max_eval=40)
+        mi_null_permutations=2, placement_samples=4, optimizer_max_eval=40,
+        centering_simulations=0)
     real = settings.budget
     monkeypatch.setattr(settings, "budget", lambda name: tiny if name == "small" else real(name))
 

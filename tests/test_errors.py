@@ -104,7 +104,8 @@ def test_optimising_for_global_robustness_lands_in_the_wide_region(seed):
     settings = LearningSettings(
         n_initial=96, n_successes=24, exploration_batch=8, active_batch=8, active_max_iter=2,
         svm_C_grid=(1.0, 10.0, 100.0), svm_gamma_grid=(1.0, 10.0), svm_class_weights=(None,),
-        error_radius=1.0, placement_samples=128, verify_samples=64)
+        error_radius=1.0, placement_samples=128, verify_samples=64,
+        centering_simulations=0)
     result = learn_and_optimize(oracle, settings, seed)
     chosen = verify_layout(result.model, result.x, result.X, result.labels, oracle.simulate,
                            oracle.validity, settings).chosen.x

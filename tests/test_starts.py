@@ -33,6 +33,7 @@ SMALL = LearningSettings(
     active_batch=8, active_max_iter=1, svm_C_grid=(1.0, 10.0, 100.0),
     svm_gamma_grid=(1.0, 10.0), svm_class_weights=(None,), mi_null_permutations=2,
     placement_samples=32, optimizer_max_eval=100, error_radius=0.0, verify_samples=32,
+    centering_simulations=0,
 )
 
 # 8-D: a ball of radius 0.2 holds about 1e-5 of the cube, far from the centre.

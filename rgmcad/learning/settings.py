@@ -245,11 +245,13 @@ class LearningSettings:
     verify_noise : float, default 0.05
         With ``error_radius`` 0: standard deviation (normalised units) of those placement
         errors, the same as ``placement_noise`` by default.
-    centering_simulations : int, default 0
+    centering_simulations : int, default 320
         Added by rgmcad: at most this many simulations to centre the chosen layout in its
         success region by Gaussian adaptation (:mod:`rgmcad.learning.centering`); the centre
-        replaces it only if it does better under the final choice's errors. 0: none.
-        Needs ``verify_samples`` > 0.
+        replaces it only if it does better at ``centering_check_samples`` errors. 0: none
+        (the paper's method). Needs ``verify_samples`` > 0. Why: where the model rests on
+        few successes the chosen layout sits in a pocket near the edge of its region; see
+        docs/decisions.md, "Design centring".
     centering_batch : int, default 16
         Valid layouts simulated per centring step.
     centering_hit_rate : float, default 0.3
@@ -317,7 +319,7 @@ class LearningSettings:
     verify_candidates: int = 4
     verify_samples: int = 32
     verify_noise: float = 0.05
-    centering_simulations: int = 0
+    centering_simulations: int = 320
     centering_batch: int = 16
     centering_hit_rate: float = 0.3
     centering_check_samples: int = 128
@@ -417,7 +419,8 @@ def budget(name: str) -> LearningSettings:
     ``LearningSettings`` is documented there). ``small`` is a quick look for trying a scenario
     out and for tests, not for results: N0 = 100 Sobol points, N+ = 20, at most 50
     exploration and 2 active-learning iterations, a 4 x 4 SVM grid, 16 placement errors,
-    8 errors per candidate in the final choice.
+    8 errors per candidate in the final choice, a centring of 64 simulations judged at 32
+    errors.
     """
     if name == "default":
         return LearningSettings()
@@ -426,6 +429,7 @@ def budget(name: str) -> LearningSettings:
             n_initial=100, n_successes=20, exploration_max_iter=50, active_batch=10,
             active_max_iter=2, svm_C_grid=(0.1, 1.0, 10.0, 100.0),
             svm_gamma_grid=(0.1, 1.0, 10.0, 100.0), placement_samples=32,
-            optimizer_max_eval=200, verify_samples=8,
+            optimizer_max_eval=200, verify_samples=8, centering_simulations=64,
+            centering_check_samples=32,
         )
     raise ValueError(f"unknown budget {name!r}; valid: {', '.join(BUDGETS)}")
