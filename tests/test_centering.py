@@ -4,12 +4,16 @@ bodies, within the budget, and replaces the chosen layout only when it does bett
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
 from rgmcad.learning import LearningSettings, verify_layout
 from rgmcad.learning.centering import center_layout
 from rgmcad.learning.oracles import BallRegion, BoxRegion, OracleEvent, ProductOracle
+
+SIMPLE = str(Path(__file__).resolve().parent.parent / "scenarios" / "simple.toml")
 
 
 def ball_oracle(d, invalid=()):
@@ -111,7 +115,8 @@ def _choose(settings, x_opt, oracle, simulate=None):
 
 def test_the_final_choice_keeps_the_centre_when_it_does_better():
     oracle = ball_oracle(2)
-    settings = LearningSettings(verify_samples=32, error_radius=1.0, centering_simulations=160)
+    settings = LearningSettings(verify_samples=32, error_radius=1.0, centering="always",
+                                centering_simulations=160)
     simulate = Counting(oracle)
     x_edge = np.array([0.5, 0.79])  # the only candidate, 0.01 inside the edge
     v = _choose(settings, x_edge, oracle, simulate)
@@ -131,8 +136,8 @@ def test_a_centre_that_does_no_better_is_not_kept():
     # a point of the region that is deep already, and a second candidate deeper still: the
     # choice among candidates comes first, then its centre must beat it at the same errors
     oracle = ball_oracle(2)
-    settings = LearningSettings(verify_samples=32, error_radius=1.0, centering_simulations=64,
-                                verify_candidates=2)
+    settings = LearningSettings(verify_samples=32, error_radius=1.0, centering="always",
+                                centering_simulations=64, verify_candidates=2)
     from test_learning import disc_model
 
     X = np.array([[0.52, 0.47], [0.6, 0.6]])
@@ -152,12 +157,47 @@ def test_a_centre_that_does_no_better_is_not_kept():
             assert v.chosen is best and centre.success_rate <= before.success_rate
 
 
-def test_without_centring_the_choice_is_unchanged():
+@pytest.mark.parametrize(("mode", "found", "centred"), [
+    ("off", 3, False), ("auto", None, False), ("auto", 100, False), ("auto", 99, True),
+    ("always", 100, True)])
+def test_when_the_layout_is_centred(mode, found, centred):
+    # by default only when the exploration found fewer successes than it was to collect
     oracle = ball_oracle(2)
-    settings = LearningSettings(verify_samples=32, error_radius=1.0, centering_simulations=0)
-    v = _choose(settings, np.array([0.5, 0.79]), oracle)
-    assert v.centering is None and v.centering_check is None
-    assert v.candidates == () and v.chosen.source == "optimum"
+    settings = LearningSettings(verify_samples=32, error_radius=1.0, centering=mode,
+                                centering_simulations=32, n_successes=100)
+    x_edge = np.array([0.5, 0.79])
+    from test_learning import disc_model
+
+    v = verify_layout(disc_model(), x_edge, x_edge[None, :], oracle.simulate(x_edge[None, :]),
+                      oracle.simulate, oracle.validity, settings,
+                      rng=np.random.default_rng(0), exploration_successes=found)
+    assert (v.centering is not None) is centred
+    if not centred:
+        assert v.centering_check is None and v.chosen.source == "optimum"
+        assert v.n_simulations == 1
+
+
+def test_a_run_whose_exploration_fell_short_is_centred(tmp_path):
+    # the user's view: `optimize` on a scenario where the exploration ends at its cap with
+    # fewer successes than it was to collect; the run says what the centring did
+    from _support import TINY
+
+    from rgmcad.runs.workflow import optimize_scenario
+
+    short = TINY.replace(n_successes=10_000, centering_simulations=32,
+                         centering_check_samples=16)
+    run = optimize_scenario(SIMPLE, seed=0, settings=short, run_dir=tmp_path / "short",
+                            workers=1)
+    c = run.summary["centering"]
+    assert c is not None and c["simulations"] == 32 and len(c["radii"]) == 2
+    assert ("centred by simulation" in run.summary["source"]) is c["kept"]
+    by_stage = run.summary["simulations_by_stage"]
+    assert by_stage["exploration"] == TINY.n_initial + TINY.exploration_max_iter * 10
+    full = optimize_scenario(SIMPLE, seed=0, settings=TINY.replace(centering_simulations=32),
+                             run_dir=tmp_path / "enough", workers=1)
+    # 60 exploration samples, stopped by N+ (measured: not at the cap of 40 + 8 x 10)
+    assert full.summary["simulations_by_stage"]["exploration"] < 120
+    assert full.summary["centering"] is None
 
 
 @pytest.mark.parametrize(("changes", "word"), [
@@ -165,6 +205,7 @@ def test_without_centring_the_choice_is_unchanged():
     ({"centering_hit_rate": 1.0}, "centering_hit_rate"),
     ({"centering_batch": 0}, "centering_batch"),
     ({"centering_simulations": -1}, "centering_simulations"),
+    ({"centering": "sometimes"}, "centering"),
 ])
 def test_centring_settings_are_checked(changes, word):
     with pytest.raises(ValueError, match=word):

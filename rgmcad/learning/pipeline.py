@@ -112,6 +112,12 @@ class LearningResult:
         """All simulations run."""
         return len(self.labels)
 
+    @property
+    def n_exploration_successes(self) -> int:
+        """Global successes among the exploration's samples (the user's starts included)."""
+        return sum(lab.success for lab, stage in zip(self.labels, self.stages, strict=True)
+                   if stage == "exploration")
+
 
 class _Recorder:
     """Runs simulations in batches and keeps every labelled sample (internal)."""

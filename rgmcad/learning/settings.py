@@ -245,13 +245,18 @@ class LearningSettings:
     verify_noise : float, default 0.05
         With ``error_radius`` 0: standard deviation (normalised units) of those placement
         errors, the same as ``placement_noise`` by default.
+    centering : {"auto", "always", "off"}, default "auto"
+        Added by rgmcad: when to centre the chosen layout in its success region by
+        simulation (Gaussian adaptation, :mod:`rgmcad.learning.centering`); the centre
+        replaces it only if it does better at ``centering_check_samples`` errors. "auto":
+        when the exploration ended with fewer than ``n_successes`` global successes (the
+        success model then rests on few, and the chosen layout tends to sit in a pocket near
+        the edge of its region); "off": the paper's method. Why "auto" and not "always":
+        where the exploration found its successes, the centre did worse than the chosen
+        layout in 5 of the 6 shipped scenarios (docs/decisions.md, "Design centring").
     centering_simulations : int, default 320
-        Added by rgmcad: at most this many simulations to centre the chosen layout in its
-        success region by Gaussian adaptation (:mod:`rgmcad.learning.centering`); the centre
-        replaces it only if it does better at ``centering_check_samples`` errors. 0: none
-        (the paper's method). Needs ``verify_samples`` > 0. Why: where the model rests on
-        few successes the chosen layout sits in a pocket near the edge of its region; see
-        docs/decisions.md, "Design centring".
+        At most this many simulations for the centring (0: none). Needs ``verify_samples``
+        > 0.
     centering_batch : int, default 16
         Valid layouts simulated per centring step.
     centering_hit_rate : float, default 0.3
@@ -319,6 +324,7 @@ class LearningSettings:
     verify_candidates: int = 4
     verify_samples: int = 32
     verify_noise: float = 0.05
+    centering: Literal["auto", "always", "off"] = "auto"
     centering_simulations: int = 320
     centering_batch: int = 16
     centering_hit_rate: float = 0.3
@@ -372,7 +378,10 @@ class LearningSettings:
         if not 0.0 < self.centering_hit_rate < 1.0:
             raise ValueError("LearningSettings.centering_hit_rate must lie in (0, 1), got "
                              f"{self.centering_hit_rate!r}")
-        if self.centering_simulations and not self.verify_samples:
+        if self.centering not in ("auto", "always", "off"):
+            raise ValueError("LearningSettings.centering must be 'auto', 'always' or 'off', "
+                             f"got {self.centering!r}")
+        if self.centering != "off" and self.centering_simulations and not self.verify_samples:
             raise ValueError("LearningSettings.centering_simulations needs verify_samples > 0 "
                              "(the centre is judged by the final choice's errors)")
         if not 0.0 <= self.error_radius <= 2.0:

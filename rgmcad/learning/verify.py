@@ -18,7 +18,8 @@ candidates, right after the optimum: the layout returned is then at least as goo
 user's by this measure. With ``verify_samples = 0`` the choice is the
 paper's: the optimum if it succeeds, else the best predicted simulated success.
 
-With ``centering_simulations`` > 0 the layout chosen is then centred by simulation
+When ``settings.centering`` asks for it (by default: when the exploration found fewer
+than ``n_successes`` successes), the layout chosen is then centred by simulation
 (:mod:`rgmcad.learning.centering`); the centre replaces it only if the centre succeeds in its
 own simulation and its success rate is higher when both are simulated at
 ``centering_check_samples`` common errors.
@@ -118,6 +119,7 @@ def verify_layout(
     settings: LearningSettings,
     starts: Mapping[str, np.ndarray] | None = None,
     rng: np.random.Generator | None = None,
+    exploration_successes: int | None = None,
 ) -> Verification:
     """Pick the layout to return (see the module docstring).
 
@@ -140,7 +142,11 @@ def verify_layout(
         among ``X`` is simulated here) is a candidate after the optimum, beside the
         ``verify_candidates``.
     rng : numpy.random.Generator, optional
-        The centring's draws; needed when ``settings.centering_simulations`` > 0.
+        The centring's draws; needed when the layout is centred.
+    exploration_successes : int, optional
+        Global successes the exploration found: with ``settings.centering = "auto"`` the
+        layout is centred when they are fewer than ``settings.n_successes`` (never when
+        not given).
     """
     x_opt = np.asarray(x_opt, dtype=float)
     X = np.asarray(X, dtype=float).reshape(len(labels), -1)
@@ -174,11 +180,10 @@ def verify_layout(
         tested, n_tested = _scored(candidates, design, simulate, validity)
         n_sims += n_tested
         chosen = tested[max(range(len(tested)), key=lambda k: (tested[k].success_rate, -k))]
-    if settings.centering_simulations == 0:
+    if not _centring_wanted(settings, exploration_successes):
         return Verification(chosen, True, optimum, tuple(tested), n_sims)
     if rng is None:
-        raise ValueError("verify_layout: centring (settings.centering_simulations > 0) "
-                         "needs rng")
+        raise ValueError("verify_layout: centring needs rng")
     centring = center_layout(chosen.x, simulate, validity, rng,
                              simulations=settings.centering_simulations,
                              batch=settings.centering_batch,
@@ -220,6 +225,14 @@ def _scored(candidates, design, simulate, validity) -> tuple[list[Candidate], in
         tested.append(Candidate(c.x, c.source, c.outcome, rate, int(block_ok.sum()),
                                 c.centered))
     return tested, int(ok.sum())
+
+
+def _centring_wanted(settings: LearningSettings, exploration_successes: int | None) -> bool:
+    if settings.centering == "off" or settings.centering_simulations == 0:
+        return False
+    if settings.centering == "always":
+        return True
+    return exploration_successes is not None and exploration_successes < settings.n_successes
 
 
 @dataclass(frozen=True)

@@ -79,7 +79,8 @@ def choose_layout(recorded, result, starts: dict[str, np.ndarray] | None = None,
 
     v = verify_layout(result.model, result.x, result.X, result.labels, recorded.simulate,
                       recorded.validity, result.settings, starts=starts,
-                      rng=np.random.default_rng([seed, _CENTERING_STREAM]))
+                      rng=np.random.default_rng([seed, _CENTERING_STREAM]),
+                      exploration_successes=result.n_exploration_successes)
     c = v.chosen
     optimum = Outcome(v.optimum.outcome)
     if not v.verified:
