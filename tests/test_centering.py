@@ -184,7 +184,7 @@ def test_a_run_whose_exploration_fell_short_is_centred(tmp_path):
 
     from rgmcad.runs.workflow import optimize_scenario
 
-    short = TINY.replace(n_successes=10_000, centering_simulations=32,
+    short = TINY.replace(n_successes=10_000, exploration_max_iter=2, centering_simulations=32,
                          centering_check_samples=16)
     run = optimize_scenario(SIMPLE, seed=0, settings=short, run_dir=tmp_path / "short",
                             workers=1)
@@ -192,7 +192,7 @@ def test_a_run_whose_exploration_fell_short_is_centred(tmp_path):
     assert c is not None and c["simulations"] == 32 and len(c["radii"]) == 2
     assert ("centred by simulation" in run.summary["source"]) is c["kept"]
     by_stage = run.summary["simulations_by_stage"]
-    assert by_stage["exploration"] == TINY.n_initial + TINY.exploration_max_iter * 10
+    assert by_stage["exploration"] == TINY.n_initial + 2 * 10  # to the cap
     full = optimize_scenario(SIMPLE, seed=0, settings=TINY.replace(centering_simulations=32),
                              run_dir=tmp_path / "enough", workers=1)
     # 60 exploration samples, stopped by N+ (measured: not at the cap of 40 + 8 x 10)
