@@ -338,3 +338,43 @@ def test_the_command_line_full_option_reaches_the_learner(tmp_path, monkeypatch)
     code, summary = run_cli(["optimize", SIMPLE, "--budget", "small", "--seed", "3", "--full",
                           "--run", str(tmp_path / "run"), "--json", "-q"])
     assert code == 0 and list(summary["event_probabilities"]) == [GLOBAL_EVENT]
+
+
+def _far_track(tmp_path, free: str):
+    """simple.toml with the track's free ranges replaced."""
+    text = open(SIMPLE).read()
+    given = "free = { x = [-0.15, 0.0], z = [0.0, 0.15], roll = [15, 75] }"
+    assert given in text
+    path = tmp_path / "far.toml"
+    path.write_text(text.replace(given, free))
+    return path
+
+
+def test_a_run_where_nothing_succeeds_says_what_to_do(tmp_path, monkeypatch, capsys):
+    """``rgmcad optimize`` on a scenario whose free ranges put the track 0.8 m from the
+    dominoes, low and flat (the ball never reaches them): exit status 1 and one warning line
+    naming ``--start``."""
+    import rgmcad.learning.settings as settings_module
+
+    hopeless = _far_track(tmp_path, "free = { x = [-0.9, -0.8], z = [0.04, 0.08], "
+                                    "roll = [15, 25] }")
+    monkeypatch.setattr(settings_module, "budget", lambda name: TINY)
+    code = main(["optimize", str(hopeless), "--budget", "small", "--run",
+                 str(tmp_path / "run"), "--workers", "1"])
+    out, err = capsys.readouterr()
+    assert code == 1
+    assert "unverified" in out
+    warning = [line for line in err.splitlines() if line.startswith("warning: no layout")]
+    assert len(warning) == 1 and "--start LAYOUT" in warning[0]
+
+
+def test_free_ranges_where_every_layout_overlaps_are_refused_in_one_line(tmp_path, capsys):
+    """The track at most 1 cm up and tilted: it cuts the floor in every layout. One line
+    naming the file and ``free``, exit status 2, no traceback."""
+    overlapping = _far_track(tmp_path, "free = { x = [-0.9, -0.8], z = [0.0, 0.01], "
+                                       "roll = [15, 20] }")
+    code = main(["optimize", str(overlapping), "--budget", "small", "--run",
+                 str(tmp_path / "run"), "--workers", "1", "-q"])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and len(err) == 1
+    assert str(overlapping) in err[0] and ": free: " in err[0] and "--vector 0.5,0.5,0.5" in err[0]

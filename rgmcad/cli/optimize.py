@@ -86,6 +86,12 @@ def run(args) -> int:
     show(done.summary, args.json, done.wall_time if done.finished_before else None)
     if not args.json:
         say(f"next: rgmcad simulate {args.scenario_given} --layout {layout}")
+    if not done.verified and not args.quiet:
+        sys.stderr.write(
+            f"warning: no layout succeeded in the run's {done.summary['simulations']} "
+            f"simulations, so {layout} is unchecked: start from a layout of yours that works "
+            f"(rgmcad optimize {args.scenario_given} --start LAYOUT), or see where the "
+            f"chain stops (rgmcad simulate {args.scenario_given} --layout {layout})\n")
     return 0 if done.verified else 1
 
 

@@ -56,7 +56,14 @@ from .oracles import (
     SlabRegion,
 )
 from .pipeline import LearningResult, Progress, learn_and_optimize
-from .sampling import Exploration, SobolStream, explore, first_valid, sample_mixture
+from .sampling import (
+    Exploration,
+    NoValidLayoutError,
+    SobolStream,
+    explore,
+    first_valid,
+    sample_mixture,
+)
 from .settings import LearningSettings
 from .verify import Candidate, Verification, verify_layout
 
@@ -81,6 +88,7 @@ __all__ = [
     "GLOBAL_EVENT",
     "Label",
     "LearningResult",
+    "NoValidLayoutError",
     "LearningSettings",
     "OptimizationResult",
     "OracleEvent",

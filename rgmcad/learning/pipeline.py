@@ -239,11 +239,6 @@ def learn_and_optimize(
 
     X_explored = exploration.X
     valid_rows = [i for i, lab in enumerate(exploration.labels) if lab.valid]
-    if not valid_rows:
-        raise RuntimeError(
-            "exploration found no valid design vector; check problem.validity or widen the "
-            "design space"
-        )
     rows = start_points(model, X_explored[valid_rows], settings)
     x0 = X_explored[valid_rows[rows[0]]]
     opt = None

@@ -20,6 +20,7 @@ from .oracles import Label, Problem
 from .settings import LearningSettings
 
 __all__ = [
+    "NoValidLayoutError",
     "SobolStream",
     "sample_mixture",
     "first_valid",
@@ -34,6 +35,16 @@ ValidityFn = Callable[[np.ndarray], np.ndarray]
 SubmitFn = Callable[[np.ndarray], Callable[[], Sequence[Label]]]
 
 _MIN_LOG_STEP_SCALE = float(np.log(1 / 16))  # the exploration step's floor: 1/16 of the paper's
+
+
+class NoValidLayoutError(RuntimeError):
+    """Every layout the exploration's Sobol stage drew was invalid (``problem.validity``
+    refused them all) and no start layout was given: nothing to simulate nor to draw around.
+    ``n_drawn`` is how many it tested."""
+
+    def __init__(self, n_drawn: int):
+        self.n_drawn = n_drawn
+        super().__init__(f"none of the {n_drawn} layouts the exploration drew is valid")
 
 
 class SobolStream:
@@ -296,6 +307,8 @@ def explore(
             Xs.append(X_start)
             labels.extend(simulate(X_start))
     X0, n_tested = _sobol_valid(sobol, problem.validity, s.n_initial, s.max_draws_factor)
+    if len(X0) == 0 and not labels:  # nothing valid to simulate, nor to draw around
+        raise NoValidLayoutError(n_tested)
     if len(X0) < s.n_initial:
         logger.warning(
             "exploration: only %d valid Sobol points among %d candidates (wanted %d)",

@@ -24,6 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
+from rgmcad.errors import ScenarioError
 from rgmcad.files import write_atomic, write_json_atomic
 from rgmcad.parts.family import family_digest
 from rgmcad.parts.store import DEFAULT_BUILD_DIR
@@ -196,7 +197,7 @@ def optimize_scenario(
         summary = store.read_result()  # None unless finished, with its model intact
         if summary is not None and _readable_json(run_dir / LAYOUT_FILE):
             return OptimizationRun(run_dir, summary, True, time.perf_counter() - start)
-        from rgmcad.learning import learn_and_optimize
+        from rgmcad.learning import NoValidLayoutError, learn_and_optimize
         from rgmcad.learning.parallel import jobs_on
 
         problem = problem or ScenarioProblem(scenario_path, build_dir, parts_dir)
@@ -209,9 +210,17 @@ def optimize_scenario(
             # The pool is idle while the models train: their grid searches, calibration folds
             # and mutual information estimates run there (never changing the result).
             with jobs_on(executor):
-                result = learn_and_optimize(
-                    learner_problem, settings, seed, on_progress=lambda p: progress.stage(p.stage),
-                    starts=np.vstack(list(start_vectors.values())) if start_vectors else None)
+                try:
+                    result = learn_and_optimize(
+                        learner_problem, settings, seed,
+                        on_progress=lambda p: progress.stage(p.stage),
+                        starts=np.vstack(list(start_vectors.values())) if start_vectors else None)
+                except NoValidLayoutError as exc:
+                    raise ScenarioError(
+                        scenario_path, "free", f"{exc} (parts overlap in every one): expected "
+                        "free ranges where the parts can stand apart; `rgmcad simulate "
+                        f"{scenario_path} --vector {','.join(['0.5'] * len(scenario.free))}` "
+                        "shows which overlap in the middle of the ranges") from None
             progress.stage("verification")
             chosen = choose_layout(learner_problem, result, start_vectors, seed)
             robustness = None
