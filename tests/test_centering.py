@@ -93,6 +93,21 @@ def test_overlapping_layouts_are_never_simulated_nor_returned():
     assert float(oracle.events["hit"].region.signed_distance(out.x[None, :])[0]) > 0.05
 
 
+def test_a_layout_hemmed_in_on_every_side_ends_the_centring():
+    # parts that touch all round: every draw, however close, overlaps; the centring must
+    # stop rather than halve its radius for ever
+    oracle = ball_oracle(3)
+    x0 = np.full(3, 0.5)
+    simulate = Counting(oracle)
+
+    def only_x0(P):
+        return np.all(np.atleast_2d(P) == x0, axis=1)
+
+    out = center_layout(x0, simulate, only_x0, np.random.default_rng(0), simulations=320)
+    assert out.n_simulations == 0 and not simulate.asked and np.array_equal(out.x, x0)
+    assert np.isnan(out.hit_rates).all() and out.radii[-1] == 1e-3
+
+
 def test_less_than_a_batch_of_budget_simulates_nothing():
     oracle = ball_oracle(3)
     simulate = Counting(oracle)

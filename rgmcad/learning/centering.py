@@ -101,10 +101,12 @@ def center_layout(
         P = _draws(m, r, batch * _CANDIDATES_PER_DRAW, rng)
         ok = np.flatnonzero(np.asarray(validity(P), dtype=bool))[:batch]
         radii.append(r)
-        if len(ok) == 0:  # every draw overlaps: look closer
+        if len(ok) == 0:  # every draw overlaps: look closer, unless as close as it gets
             rates.append(float("nan"))
-            r = max(r / 2, _MIN_RADIUS)
             centres.append(m.copy())
+            if r == _MIN_RADIUS:
+                break
+            r = max(r / 2, _MIN_RADIUS)
             continue
         wins = np.array([lab.success for lab in simulate(P[ok])], dtype=bool)
         n_sims += len(ok)
