@@ -25,6 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .errors import mirrored_offsets
 from .oracles import Label
 
 __all__ = ["Centering", "center_layout"]
@@ -131,5 +132,4 @@ def _draws(m: np.ndarray, r: float, n: int, rng: np.random.Generator) -> np.ndar
     d = len(m)
     half = rng.standard_normal(((n + 1) // 2, d)) * (r / np.sqrt(d))
     offsets = np.stack([half, -half], axis=1).reshape(-1, d)[:n]
-    out = (m + offsets < 0.0) | (m + offsets > 1.0)
-    return np.clip(m + np.where(out, -offsets, offsets), 0.0, 1.0)
+    return np.clip(m + mirrored_offsets(m, offsets), 0.0, 1.0)

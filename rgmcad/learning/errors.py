@@ -27,7 +27,7 @@ from scipy.special import ndtri
 from scipy.stats import qmc
 
 __all__ = ["ErrorDesign", "gaussian_errors", "ball_errors", "design_from_settings",
-           "expected_success"]
+           "expected_success", "mirrored_offsets"]
 
 
 @dataclass(frozen=True)
@@ -61,9 +61,7 @@ class ErrorDesign:
         if self.levels is None:
             return self.offsets, np.ones(k)
         x = np.asarray(x, dtype=float).reshape(1, -1)
-        O = self.offsets
-        out = (x + O < 0.0) | (x + O > 1.0)
-        F = np.where(out, -O, O)
+        F = mirrored_offsets(x, self.offsets)
         inside = np.all((x + F >= 0.0) & (x + F <= 1.0), axis=1)
         mirror_out = (x - F < 0.0) | (x - F > 1.0)
         return F, inside * 0.5 ** mirror_out.sum(axis=1)
@@ -80,6 +78,13 @@ class ErrorDesign:
         if not used.any():
             return np.zeros(len(raw))
         return np.where(raw > 0, raw / np.where(used, sums, 1.0)[self.levels], 0.0) / used.sum()
+
+
+def mirrored_offsets(x: np.ndarray, offsets: np.ndarray) -> np.ndarray:
+    """``offsets`` (k, d) with each coordinate that would take ``x`` out of ``[0, 1]``
+    negated (mirrored back into the cube; one that leaves past both faces stays out)."""
+    out = (x + offsets < 0.0) | (x + offsets > 1.0)
+    return np.where(out, -offsets, offsets)
 
 
 def _sobol_midpoints(dim: int, m: int) -> np.ndarray:
