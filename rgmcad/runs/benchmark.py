@@ -48,7 +48,7 @@ from rgmcad.runs.store import RecordedProblem, RunStore
 from rgmcad.scene.perturbation import DEFAULT_PHYSICS, PhysicsRanges
 
 __all__ = ["METHODS", "DEFAULT_METHODS", "LEARNERS", "LABELS", "TRIAL", "TABLE_MD",
-           "TABLE_JSON", "PLOT", "run_benchmark", "budget_of_ours"]
+           "TABLE_JSON", "PLOT", "run_benchmark", "budget_of_ours", "evaluate_trial"]
 
 METHODS = ("ours", "full", "b1", "b2", "b3", "cma")
 DEFAULT_METHODS = ("ours", "b1", "b2", "b3", "cma")
@@ -156,8 +156,11 @@ def _baseline(method: str, identity: dict, run_dir: Path, problem, executor, bud
     return trial
 
 
-def _evaluate(identity: dict, run_dir: Path, problem, executor, x, samples: int, seed: int,
-              progress, physics: PhysicsRanges | None = None) -> dict:
+def evaluate_trial(identity: dict, run_dir: Path, problem, executor, x, samples: int,
+                   seed: int, progress, physics: PhysicsRanges | None = None) -> dict:
+    """Layout ``x`` evaluated as the benchmark's trial ``seed`` evaluates every method's layout
+    (the same perturbation draws), journaled in ``run_dir``; a finished one is read back.
+    ``progress.simulated(record, ...)`` is called per simulation."""
     from rgmcad.runs.robustness import local_robustness
 
     done = _read(run_dir / TRIAL)
@@ -261,7 +264,7 @@ def run_benchmark(scenario_path, out_dir, *, methods=DEFAULT_METHODS, trials: in
                 progress.stage(f"evaluate {m} t{s}")
                 identity = {**base, "kind": "evaluation", "vector": trial["vector"],
                             "seed": s, "samples": samples}
-                evaluations.setdefault(m, []).append(_evaluate(
+                evaluations.setdefault(m, []).append(evaluate_trial(
                     identity, out / "eval" / tags[m] / f"t{s}", problem, executor,
                     trial["vector"], samples, s, progress, physics))
     finally:
