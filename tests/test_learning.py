@@ -35,6 +35,7 @@ from rgmcad.learning import (
     verify_layout,
 )
 from rgmcad.learning.errors import gaussian_errors
+from rgmcad.learning.sampling import exploration_parents
 
 # A small grid keeps each SVM fit under half a second; the defaults use the authors' 98.
 FAST = LearningSettings(
@@ -699,6 +700,32 @@ def test_exploration_step_holds_the_rate_at_which_draws_keep_their_progress(seed
     assert all(1 / 16 <= s <= 1.0 for s in held.step_scales)
     assert min(held.step_scales) < 0.8
     assert max(lab.n_success for lab in held.labels) >= max(lab.n_success for lab in fixed.labels)
+
+
+def test_exploration_parents_are_the_papers_unless_more_than_n_share_the_top_count():
+    counts = np.array([3, 1, 3, 2, 0, 2])
+    assert exploration_parents(counts, 3).tolist() == [0, 2, 3]  # oldest first on ties
+    assert exploration_parents(counts, 2).tolist() == [0, 2]  # exactly n at the top
+    plateau = np.array([2, 2, 1, 2, 2, 0])
+    assert exploration_parents(plateau, 3).tolist() == [1, 3, 4]  # the most recent three
+    assert exploration_parents(np.array([1, 1]), 5).tolist() == [0, 1]  # fewer than n
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_on_a_plateau_the_exploration_wanders_instead_of_circling_its_first_samples(seed):
+    """Half the cube gets the first event and nothing gets the second: every sample there
+    ties. Draws late in the exploration end far from the first samples that tied (with the
+    oldest as parents for ever they stayed at the step's reach, 0.22-0.27 on average)."""
+    plateau = ProductOracle(8, {"e0": OracleEvent((), (0,), BoxRegion((0.0,), (0.5,))),
+                                "e1": OracleEvent(("e0",), (1,), BoxRegion((2.0,), (3.0,)))})
+    settings = LearningSettings(n_initial=64, n_successes=20, exploration_batch=5,
+                                exploration_max_iter=80)
+    res = explore(plateau, settings, np.random.default_rng(seed))
+    counts = np.array([lab.n_success for lab in res.labels])
+    first = res.X[np.flatnonzero(counts == 1)[:20]]
+    late = res.X[-50:]
+    reach = np.linalg.norm(late[:, None] - first[None], axis=2).min(axis=1)
+    assert reach.mean() > 0.45
 
 
 def test_exploration_step_is_the_papers_wherever_draws_keep_their_progress():

@@ -26,6 +26,7 @@ __all__ = [
     "first_valid",
     "Exploration",
     "explore",
+    "exploration_parents",
 ]
 
 logger = logging.getLogger(__name__)
@@ -246,7 +247,9 @@ def explore(
        ``max_draws_factor * n_initial`` candidates).
     2. While fewer than ``n_successes`` samples succeeded globally and fewer than
        ``exploration_max_iter`` iterations ran: take the ``n_successes`` samples with the
-       most successful events (stable order on ties), build a mixture with one Gaussian per
+       most successful events (stable order on ties; on a plateau, where more than
+       ``n_successes`` share the top count, the most recent of them:
+       :func:`exploration_parents`), build a mixture with one Gaussian per
        sample (weight proportional to its number of successful events, covariance
        ``exploration_variance * I``), and simulate its first ``exploration_batch`` valid
        draws (out of ``max_draws_factor`` times as many).
@@ -347,7 +350,7 @@ def explore(
             drawing = False  # wait for the batches in flight, then stop
             continue
         counts = np.asarray(n_succ, dtype=float)
-        top = np.argsort(-counts, kind="stable")[: min(s.n_successes, len(counts))]
+        top = exploration_parents(counts, s.n_successes)
         w = counts[top]
         parent_counts = None
         if w.sum() > 0:
@@ -382,6 +385,23 @@ def explore(
         )
     return Exploration(X, tuple(labels), k, n_tested, int(n_global), tuple(keep_rates),
                        tuple(step_scales))
+
+
+def exploration_parents(counts: np.ndarray, n: int) -> np.ndarray:
+    """Indices of the samples the next exploration mixture grows around: the ``n`` with the
+    most successful events, the oldest first on ties (the paper's order).
+
+    On a *plateau*, where more than ``n`` samples share the top count, the ``n`` most recent
+    of them instead. The count then says nothing more about which to prefer, and the oldest
+    never change: every later draw at that count would be made around the same ``n`` points
+    for the rest of the exploration. The most recent ones move with the draws, so the
+    population wanders over the plateau (docs/decisions.md, "Exploration plateaus").
+    """
+    counts = np.asarray(counts)
+    top = np.argsort(-counts, kind="stable")[: min(n, len(counts))]
+    if len(top) == n and n > 0 and counts[top[0]] == counts[top[-1]]:
+        top = np.flatnonzero(counts == counts[top[0]])[-n:]
+    return top
 
 
 def _sobol_valid(
