@@ -144,6 +144,7 @@ def test_the_final_choice_keeps_the_centre_when_it_does_better():
     # the optimum's own simulation, the centring, the centre's own simulation, the copies
     assert v.n_simulations == (1 + v.centering.n_simulations + 1
                                + before.n_valid + centre.n_valid) == len(simulate.layouts)
+    assert v.n_centering_simulations == v.n_simulations - 1  # all but the optimum's own
     assert before.n_valid + centre.n_valid > 200  # 128 errors each, a few outside
 
 
@@ -208,11 +209,14 @@ def test_a_run_whose_exploration_fell_short_is_centred(tmp_path):
     assert ("centred by simulation" in run.summary["source"]) is c["kept"]
     by_stage = run.summary["simulations_by_stage"]
     assert by_stage["exploration"] == TINY.n_initial + 2 * 10  # to the cap
+    assert by_stage["centering"] >= 32 + 1 and by_stage["verification"] >= 1
+    assert sum(by_stage.values()) == run.summary["evaluations"]
     full = optimize_scenario(SIMPLE, seed=0, settings=TINY.replace(centering_simulations=32),
                              run_dir=tmp_path / "enough", workers=1)
     # 60 exploration samples, stopped by N+ (measured: not at the cap of 40 + 8 x 10)
     assert full.summary["simulations_by_stage"]["exploration"] < 120
     assert full.summary["centering"] is None
+    assert "centering" not in full.summary["simulations_by_stage"]
 
 
 @pytest.mark.parametrize(("changes", "word"), [

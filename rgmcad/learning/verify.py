@@ -90,13 +90,15 @@ class Verification:
     candidates : tuple of Candidate
         Every candidate tested under placement errors, in order.
     n_simulations : int
-        Simulations this step ran (or replayed).
+        Simulations this step ran (or replayed), the centring's included.
     centering : Centering or None
         The centring's trajectory, when the chosen layout was centred (``settings.centering``).
     centering_check : (Candidate, Candidate) or None
         The layout the centring started from and the centre, as simulated at the
         ``centering_check_samples`` errors (None when the centre did not move or failed
         its own simulation).
+    n_centering_simulations : int
+        Of ``n_simulations``, those of the centring and its check.
     """
 
     chosen: Candidate
@@ -106,6 +108,7 @@ class Verification:
     n_simulations: int
     centering: Centering | None = None
     centering_check: tuple[Candidate, Candidate] | None = None
+    n_centering_simulations: int = 0
 
 
 def verify_layout(
@@ -187,9 +190,15 @@ def verify_layout(
                              simulations=settings.centering_simulations,
                              batch=settings.centering_batch,
                              hit_rate=settings.centering_hit_rate)
+    before_centring = n_sims
     n_sims += centring.n_simulations
-    if np.array_equal(centring.x, chosen.x) or not simulate(centring.x[None, :])[0].success:
-        return Verification(chosen, True, optimum, tuple(tested), n_sims + 1, centring)
+    if np.array_equal(centring.x, chosen.x):
+        return Verification(chosen, True, optimum, tuple(tested), n_sims, centring,
+                            n_centering_simulations=n_sims - before_centring)
+    n_sims += 1  # the centre itself
+    if not simulate(centring.x[None, :])[0].success:
+        return Verification(chosen, True, optimum, tuple(tested), n_sims, centring,
+                            n_centering_simulations=n_sims - before_centring)
     # the centre against the layout it came from, at more errors than the choice among
     # candidates used (common to both): on domino_arc 32 errors ranked a centre 0.16 more
     # robust below its start (docs/decisions.md, "Design centring")
@@ -198,9 +207,10 @@ def verify_layout(
     before, centre = _scored([Candidate(chosen.x, chosen.source, chosen.outcome),
                               Candidate(centring.x, chosen.source, "success", centered=True)],
                              check, simulate, validity)[0]
-    n_sims += 1 + before.n_valid + centre.n_valid
+    n_sims += before.n_valid + centre.n_valid
     winner = centre if centre.success_rate > before.success_rate else chosen
-    return Verification(winner, True, optimum, tuple(tested), n_sims, centring, (before, centre))
+    return Verification(winner, True, optimum, tuple(tested), n_sims, centring, (before, centre),
+                        n_sims - before_centring)
 
 
 def _scored(candidates, design, simulate, validity) -> tuple[list[Candidate], int]:

@@ -269,6 +269,15 @@ def _at_layout(model, result, chosen: dict, x: np.ndarray):
     return per_event, probability, weakest, weakest_probability, tol
 
 
+def _by_stage(learning: dict, chosen: dict) -> dict:
+    """Simulations per stage: the learner's, then the final choice's, its centring apart."""
+    centring = chosen["n_centering_simulations"]
+    out = {**learning, "verification": chosen["n_simulations"] - centring}
+    if centring:
+        out["centering"] = centring
+    return out
+
+
 def _readable_json(path: Path) -> bool:
     try:
         json.loads(path.read_text())
@@ -331,8 +340,7 @@ def _write_outputs(scenario, store, recorded, result, chosen, wall_time, seed, b
                          "status": result.optimization.status},
         "simulations": len(stored),
         "evaluations": result.n_total_simulations + chosen["n_simulations"],
-        "simulations_by_stage": {**result.n_simulations,
-                                 "verification": chosen["n_simulations"]},
+        "simulations_by_stage": _by_stage(result.n_simulations, chosen),
         "verification": chosen["candidates"],
         "centering": chosen["centering"],
         "verify_noise": result.settings.verify_noise, "error_radius": result.settings.error_radius,
