@@ -702,30 +702,41 @@ def test_exploration_step_holds_the_rate_at_which_draws_keep_their_progress(seed
     assert max(lab.n_success for lab in held.labels) >= max(lab.n_success for lab in fixed.labels)
 
 
-def test_exploration_parents_are_the_papers_unless_more_than_n_share_the_top_count():
+def test_exploration_parents_break_ties_by_age_and_once_stalled_by_recency():
     counts = np.array([3, 1, 3, 2, 0, 2])
     assert exploration_parents(counts, 3).tolist() == [0, 2, 3]  # oldest first on ties
-    assert exploration_parents(counts, 2).tolist() == [0, 2]  # exactly n at the top
-    plateau = np.array([2, 2, 1, 2, 2, 0])
-    assert exploration_parents(plateau, 3).tolist() == [1, 3, 4]  # the most recent three
-    assert exploration_parents(np.array([1, 1]), 5).tolist() == [0, 1]  # fewer than n
+
+    def newest(c, n):
+        return sorted(exploration_parents(np.array(c), n, newest_first=True).tolist())
+
+    assert newest(counts, 3) == [0, 2, 5] and newest(counts, 2) == [0, 2]
+    assert newest([2, 2, 1, 2, 2, 0], 3) == [1, 3, 4]
+    assert newest([1, 1], 5) == [0, 1]
 
 
 @pytest.mark.parametrize("seed", [0, 1, 2])
 def test_on_a_plateau_the_exploration_wanders_instead_of_circling_its_first_samples(seed):
     """Half the cube gets the first event and nothing gets the second: every sample there
-    ties. Draws late in the exploration end far from the first samples that tied (with the
-    oldest as parents for ever they stayed at the step's reach, 0.22-0.27 on average)."""
+    ties, so after a few batches no draw changes the parents: the exploration has stalled.
+    Draws late in the exploration end far from the first samples that tied (with the
+    oldest as parents for ever, ``exploration_stall_batches=0``, they stay within the
+    step's reach)."""
     plateau = ProductOracle(8, {"e0": OracleEvent((), (0,), BoxRegion((0.0,), (0.5,))),
                                 "e1": OracleEvent(("e0",), (1,), BoxRegion((2.0,), (3.0,)))})
     settings = LearningSettings(n_initial=64, n_successes=20, exploration_batch=5,
                                 exploration_max_iter=80)
+    def reach(res):
+        counts = np.array([lab.n_success for lab in res.labels])
+        first = res.X[np.flatnonzero(counts == 1)[:20]]
+        late = res.X[-50:]
+        return np.linalg.norm(late[:, None] - first[None], axis=2).min(axis=1).mean()
+
     res = explore(plateau, settings, np.random.default_rng(seed))
-    counts = np.array([lab.n_success for lab in res.labels])
-    first = res.X[np.flatnonzero(counts == 1)[:20]]
-    late = res.X[-50:]
-    reach = np.linalg.norm(late[:, None] - first[None], axis=2).min(axis=1)
-    assert reach.mean() > 0.45
+    assert res.stalled_at is not None and res.stalled_at <= 10
+    assert reach(res) > 0.45
+    paper = explore(plateau, settings.replace(exploration_stall_batches=0),
+                    np.random.default_rng(seed))
+    assert paper.stalled_at is None and reach(paper) < 0.35
 
 
 def test_exploration_step_is_the_papers_wherever_draws_keep_their_progress():

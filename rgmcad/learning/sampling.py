@@ -218,6 +218,9 @@ class Exploration:
     step_scales : tuple of float
         Per mixture batch: the factor on the paper's standard deviation it was drawn with
         (1.0 throughout with ``exploration_keep_rate`` = 0).
+    stalled_at : int or None
+        The iteration after which the exploration counted as stalled (its parents unchanged
+        for ``exploration_stall_batches`` batches; later ties went to the newest), or None.
     """
 
     X: np.ndarray
@@ -227,6 +230,7 @@ class Exploration:
     n_global_successes: int
     keep_rates: tuple[float, ...] = ()
     step_scales: tuple[float, ...] = ()
+    stalled_at: int | None = None
 
 
 def explore(
@@ -247,9 +251,8 @@ def explore(
        ``max_draws_factor * n_initial`` candidates).
     2. While fewer than ``n_successes`` samples succeeded globally and fewer than
        ``exploration_max_iter`` iterations ran: take the ``n_successes`` samples with the
-       most successful events (stable order on ties; on a plateau, where more than
-       ``n_successes`` share the top count, the most recent of them:
-       :func:`exploration_parents`), build a mixture with one Gaussian per
+       most successful events (oldest first on ties; once the exploration has stalled,
+       newest first: step 4), build a mixture with one Gaussian per
        sample (weight proportional to its number of successful events, covariance
        ``exploration_variance * I``), and simulate its first ``exploration_batch`` valid
        draws (out of ``max_draws_factor`` times as many).
@@ -260,6 +263,12 @@ def explore(
        the paper's step nor below 1/16 of it. Why: at the paper's fixed step (0.1 per
        coordinate, a jump of length 0.1 sqrt(d)) most draws in many dimensions undo events
        that already worked, and exploration stalls (docs/decisions.md, "Exploration step").
+    4. With ``exploration_stall_batches`` = K > 0 (rgmcad's), once K mixture batches in a
+       row left the parents unchanged (no draw beat the lowest count among them), ties at
+       that count go to the newest samples for the rest of the exploration
+       (:func:`exploration_parents`): the mixtures then follow their latest draws over the
+       level they reached instead of circling the oldest samples there for good
+       (docs/decisions.md, "Exploration stalls").
 
     When no selected sample has any successful event (the paper's weights would be 0/0),
     the iteration continues the Sobol sequence instead: with no partial success to grow
@@ -328,6 +337,7 @@ def explore(
     log_scale = 0.0  # log of the factor on the paper's standard deviation (step control)
     keep_rates: list[float] = []
     step_scales: list[float] = []
+    unchanged, last_parents, stalled_at = 0, frozenset(), None  # stall detection
     while True:
         while in_flight and (len(in_flight) > s.exploration_lag or not drawing):
             Xk, parent_counts, wait = in_flight.popleft()
@@ -350,10 +360,17 @@ def explore(
             drawing = False  # wait for the batches in flight, then stop
             continue
         counts = np.asarray(n_succ, dtype=float)
-        top = exploration_parents(counts, s.n_successes)
+        top = exploration_parents(counts, s.n_successes, newest_first=stalled_at is not None)
         w = counts[top]
         parent_counts = None
         if w.sum() > 0:
+            parents = frozenset(top.tolist())
+            unchanged = unchanged + 1 if parents == last_parents else 0
+            last_parents = parents
+            if stalled_at is None and 0 < s.exploration_stall_batches <= unchanged:
+                stalled_at = k  # from the next batch on: newest first
+                logger.info("exploration stalled at iteration %d: its parents did not change "
+                            "for %d batches", k, unchanged)
             scale = float(np.exp(log_scale))
             cands, comps = _draw_mixture(
                 np.vstack(Xs)[top], w, s.exploration_variance * scale**2,
@@ -384,23 +401,26 @@ def explore(
             k, n_global, s.n_successes,
         )
     return Exploration(X, tuple(labels), k, n_tested, int(n_global), tuple(keep_rates),
-                       tuple(step_scales))
+                       tuple(step_scales), stalled_at)
 
 
-def exploration_parents(counts: np.ndarray, n: int) -> np.ndarray:
+def exploration_parents(counts: np.ndarray, n: int, newest_first: bool = False) -> np.ndarray:
     """Indices of the samples the next exploration mixture grows around: the ``n`` with the
-    most successful events, the oldest first on ties (the paper's order).
+    most successful events; ties at the lowest count taken go to the oldest (the paper's
+    order) or, with ``newest_first`` (a stalled exploration), to the most recent.
 
-    On a *plateau*, where more than ``n`` samples share the top count, the ``n`` most recent
-    of them instead. The count then says nothing more about which to prefer, and the oldest
-    never change: every later draw at that count would be made around the same ``n`` points
-    for the rest of the exploration. The most recent ones move with the draws, so the
-    population wanders over the plateau (docs/decisions.md, "Exploration plateaus").
+    Why the second: with the oldest first, a draw that only equals the lowest count never
+    gets in, so once the top samples stop improving every later draw is made around the same
+    ``n`` points. With the newest first the mixtures follow their own latest draws and the
+    population wanders over the level it reached (docs/decisions.md, "Exploration stalls").
     """
     counts = np.asarray(counts)
     top = np.argsort(-counts, kind="stable")[: min(n, len(counts))]
-    if len(top) == n and n > 0 and counts[top[0]] == counts[top[-1]]:
-        top = np.flatnonzero(counts == counts[top[0]])[-n:]
+    if newest_first and len(top):
+        cut = counts[top[-1]]
+        above = top[counts[top] > cut]
+        at_cut = np.flatnonzero(counts == cut)[::-1][: len(top) - len(above)]
+        top = np.concatenate([above, at_cut])
     return top
 
 
