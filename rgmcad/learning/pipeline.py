@@ -227,7 +227,9 @@ def learn_and_optimize(
     report(
         "exploration",
         f"{len(exploration.labels)} samples, {exploration.n_global_successes} global successes"
-        + (f"; step down to {smallest_step:.2f} of the paper's" if smallest_step < 1 else ""),
+        + (f"; step down to {smallest_step:.2f} of the paper's" if smallest_step < 1 else "")
+        + (f"; stalled at iteration {exploration.stalled_at}, newest samples first from then"
+           if exploration.stalled_at is not None else ""),
     )
 
     fit = fit_spd(
