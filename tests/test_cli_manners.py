@@ -306,7 +306,8 @@ def test_readme_optimize_examples_name_the_directories_they_write():
         if args.command == "optimize":
             name = tomllib.loads(scenario_path(args.scenario).read_text())["name"]
             where = args.run_dir or str(default_run_dir(name, args.budget, args.seed,
-                                                        args.batch, args.full, args.start))
+                                                        args.batch, args.full, args.start,
+                                                        args.centering))
             written.add(where.rstrip("/"))
             if comment.strip().startswith("runs/"):
                 assert comment.split()[0].rstrip("/") == where, line

@@ -327,6 +327,9 @@ def test_full_learns_one_model_for_the_whole_graph_in_its_own_run_directory(refe
     assert list(full["event_probabilities"]) == [GLOBAL_EVENT]
     assert default_run_dir("simple", "default", 0, full=True).name == "simple-full-s0"
     assert default_run_dir("simple", "small", 2, 40, full=True).name == "simple-small-b40-full-s2"
+    assert default_run_dir("simple", "small", 0, centering="always").name == (
+        "simple-small-centring-always-s0")
+    assert default_run_dir("simple", "small", 0, centering="auto").name == "simple-small-s0"
 
 
 def test_the_command_line_full_option_reaches_the_learner(tmp_path, monkeypatch):

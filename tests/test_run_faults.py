@@ -90,6 +90,7 @@ def small_run(tmp_path_factory):
 
 
 START = ("--start", "solved")
+CENTRED = ("--centering", "always")
 
 
 @pytest.fixture(scope="module")
@@ -98,10 +99,25 @@ def small_start_run(tmp_path_factory):
     return _uninterrupted(tmp_path_factory, START)
 
 
+@pytest.fixture(scope="module")
+def small_centred_run(tmp_path_factory):
+    """The same with ``--centering always``."""
+    return _uninterrupted(tmp_path_factory, CENTRED)
+
+
+def _kill_point(reference: dict, extra: tuple[str, ...]) -> int:
+    """Journal lines at which to kill: early in the run, or 16 simulations into the
+    centring (its simulations come last but for the check's)."""
+    if extra != CENTRED:
+        return 10
+    return reference["simulations"] - reference["simulations_by_stage"]["centering"] + 16
+
+
 @pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="reads processes in /proc")
 @pytest.mark.parametrize("uninterrupted, extra", [("small_run", ()),
-                                                  ("small_start_run", START)],
-                         ids=["plain", "with-start"])
+                                                  ("small_start_run", START),
+                                                  ("small_centred_run", CENTRED)],
+                         ids=["plain", "with-start", "during-centring"])
 def test_kill_9_of_optimize_then_the_same_command_resumes_to_the_same_result(
         uninterrupted, extra, request, tmp_path):
     _, reference = request.getfixturevalue(uninterrupted)
@@ -111,10 +127,10 @@ def test_kill_9_of_optimize_then_the_same_command_resumes_to_the_same_result(
     workers: dict[int, str] = {}
     try:
         journal = run / SIMULATIONS
-        deadline = time.monotonic() + 120
-        while not (journal.exists() and journal.read_bytes().count(b"\n") >= 10):
-            assert killed.poll() is None and time.monotonic() < deadline, "no simulations"
-            time.sleep(0.05)
+        deadline, kill_at = time.monotonic() + 120, _kill_point(reference, extra)
+        while not (journal.exists() and journal.read_bytes().count(b"\n") >= kill_at):
+            assert killed.poll() is None and time.monotonic() < deadline, "not killed in time"
+            time.sleep(0.01)
         workers = _children(killed.pid)
         assert len(workers) == 2  # the pool's workers, busy simulating
         os.kill(killed.pid, signal.SIGKILL)  # the main process only, as `kill -9 PID` does
@@ -128,6 +144,8 @@ def test_kill_9_of_optimize_then_the_same_command_resumes_to_the_same_result(
         assert summary["probability"] == reference["probability"]
         assert summary["simulations"] == reference["simulations"]
         assert summary["replayed"] >= done_before > 0
+        assert done_before < reference["simulations"]  # killed before its last simulation
+        assert summary["centering"] == reference["centering"]
         deadline = time.monotonic() + 5
         while any(_running(p, s) for p, s in workers.items()) and time.monotonic() < deadline:
             time.sleep(0.1)

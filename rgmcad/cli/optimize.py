@@ -44,6 +44,10 @@ def configure(p: argparse.ArgumentParser) -> None:
                    "your own layout (a named layout of the scenario or a layout file; repeat "
                    "for several): simulated first, and returned unless something more robust "
                    "is found")
+    p.add_argument("--centering", choices=("auto", "always", "off"), default=None,
+                   help="centre the chosen layout by simulation: auto (default) when the "
+                   "exploration found fewer successes than it was to collect, always, or off "
+                   "(the paper's pipeline); always/off get their own run directory")
     add_scheduler_args(p)
     physics.add_robustness_arg(p)
     p.add_argument("--json", action="store_true", help="print one JSON summary on stdout")
@@ -69,6 +73,7 @@ def run(args) -> int:
                                  build_dir=args.build_dir, progress=bar,
                                  parts_dir=parts_dir_arg(args), scheduler=args.scheduler,
                                  batch=args.batch, full=args.full, starts=args.start,
+                                 centering=args.centering,
                                  **physics.robustness_options(args))
     finally:
         bar.close()

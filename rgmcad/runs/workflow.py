@@ -107,12 +107,15 @@ class OptimizationRun:
 
 
 def default_run_dir(scenario_name: str, budget: str, seed: int, batch: int | None = None,
-                    full: bool = False, starts: Sequence[str] = ()) -> Path:
+                    full: bool = False, starts: Sequence[str] = (),
+                    centering: str | None = None) -> Path:
     """``runs/SCENARIO-sSEED``, or ``runs/SCENARIO-BUDGET-sSEED`` for another budget, with
-    ``-bN`` (an exploration batch of N set by ``--batch``), ``-full`` (one model, ``--full``)
-    and ``-from-NAME+...`` (the start layouts, ``--start``) before ``-sSEED``."""
+    ``-bN`` (an exploration batch of N set by ``--batch``), ``-full`` (one model, ``--full``),
+    ``-centring-always`` or ``-centring-off`` (``--centering``) and ``-from-NAME+...`` (the
+    start layouts, ``--start``) before ``-sSEED``."""
     tag = "" if budget == "default" else f"-{budget}"
     tag += ("" if batch is None else f"-b{batch}") + ("-full" if full else "")
+    tag += "" if centering in (None, "auto") else f"-centring-{centering}"
     tag += starts_tag(starts)
     return Path("runs") / f"{scenario_name}{tag}-s{seed}"
 
@@ -125,7 +128,7 @@ def optimize_scenario(
     parts_dir: str | Path | None = None, scheduler: str | None = None,
     batch: int | None = None, robustness_samples: int = 0,
     physics: PhysicsRanges | None = DEFAULT_PHYSICS, physics_noise: PhysicsRanges | None = None,
-    full: bool = False, starts: Sequence[str] = (),
+    full: bool = False, starts: Sequence[str] = (), centering: str | None = None,
 ) -> OptimizationRun:
     """Optimise a scenario's layout in a run directory, or continue an interrupted run there.
 
@@ -159,6 +162,9 @@ def optimize_scenario(
         draw of these ranges (noisy labels: the model learns the success probability under
         physical errors); part of the run's identity, ``-physics`` ends the default directory.
     full : one success model for the whole graph (``factorized=False``; paper Fig. 16).
+    centering : ``"auto"``, ``"always"`` or ``"off"``: when the chosen layout is centred by
+        simulation (``LearningSettings.centering``) instead of the settings'; part of the
+        run's identity, and of the default directory unless ``"auto"``.
     starts : the user's layouts to start from (``--start``: names of the scenario's layouts
         or layout files, :mod:`rgmcad.runs.starts`), checked before any simulation;
         simulated first by the exploration and always candidates of the final choice. Part
@@ -174,6 +180,8 @@ def optimize_scenario(
     scenario = load_scenario(scenario_path, parts_dir=parts_dir)
     settings = budget_settings(budget) if settings is None else settings
     settings = settings.replace(factorized=False) if full else settings
+    if centering is not None:
+        settings = settings.replace(centering=centering)  # checked by LearningSettings
     given = run_dir is not None
     if batch is not None:
         check_range(batch, 1, MAX_BATCH, "batch", "a number of simulations per batch")
@@ -188,7 +196,7 @@ def optimize_scenario(
         identity["physics_noise"] = physics_noise.to_json()
     tag = "" if physics_noise is None else "-physics"
     run_dir = Path(run_dir) if run_dir else default_run_dir(
-        scenario.name, budget, seed, batch, full, list(start_vectors))
+        scenario.name, budget, seed, batch, full, list(start_vectors), centering)
     run_dir = run_dir.with_name(run_dir.name + tag) if tag and not given else run_dir
     problem = ScenarioProblem(scenario_path, build_dir, parts_dir) if start_vectors else None
     check_starts_valid(problem, start_vectors)  # before any simulation
