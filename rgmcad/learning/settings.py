@@ -60,20 +60,13 @@ class LearningSettings:
         progress (succeed in at least as many events as the sample they were drawn around).
         Above 0, the mixtures' step shrinks while fewer draws keep it and grows back (never
         past ``exploration_variance``) while more do (:func:`~.sampling.explore`); 0 is the
-        paper's fixed step. Why: in many dimensions the paper's step undoes events that
-        already worked and exploration stalls; where at least this fraction keeps its
-        progress (every shipped scenario but teapot) the run is the paper's, unchanged. See
-        docs/decisions.md, "Exploration step".
+        paper's fixed step. Why (in many dimensions the paper's step undoes events that
+        already worked): docs/decisions.md, "Exploration step".
     exploration_stall_batches : int, default 5
-        Added by rgmcad: after this many mixture batches in a row in which no draw got into
-        the N+ samples the mixtures grow around, the exploration has *stalled*: from then on
-        it breaks ties at the lowest count among those samples by recency instead of age
-        (:func:`~.sampling.exploration_parents`), so that the mixtures follow the newest
-        draws instead of circling the same samples for good. 0: never (the paper's order).
-        Why: on the 18-parameter ``domino_arc`` (seed 2) the exploration's 100 oldest
-        samples that reached 13 of 14 events stayed its parents for 336 batches and none of
-        its 5,800 simulations succeeded; no shipped scenario's exploration ever went more
-        than one batch without a change. See docs/decisions.md, "Exploration stalls".
+        Added by rgmcad: after this many mixture batches in a row that left the N+ parents
+        unchanged, the exploration breaks ties at their lowest count by recency instead of
+        age (:func:`~.sampling.exploration_parents`); 0: never (the paper's order). Why:
+        docs/decisions.md, "Exploration stalls".
     sobol_scramble : bool, default True
         Scramble the Sobol sequence with the run's rng. The authors used an unscrambled
         sequence, so all their runs started from the same points; scrambling keeps the

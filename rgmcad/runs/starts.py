@@ -109,7 +109,9 @@ def choose_layout(recorded, result, starts: dict[str, np.ndarray] | None = None,
     return {"x": c.x, "source": source, "verified": v.verified,
             "is_optimum": c.source == "optimum" and not c.centered,
             "optimum_outcome": optimum.value, "n_simulations": v.n_simulations,
-            "n_centering_simulations": v.n_centering_simulations,
+            "by_stage": {"verification": v.n_simulations - v.n_centering_simulations,
+                         **({"centering": v.n_centering_simulations}
+                            if v.n_centering_simulations else {})},
             "centering": centering,
             "candidates": [{"source": t.source, "vector": [float(u) for u in t.x],
                             "success_rate": t.success_rate, "valid_copies": t.n_valid}

@@ -110,9 +110,8 @@ def default_run_dir(scenario_name: str, budget: str, seed: int, batch: int | Non
                     full: bool = False, starts: Sequence[str] = (),
                     centering: str | None = None) -> Path:
     """``runs/SCENARIO-sSEED``, or ``runs/SCENARIO-BUDGET-sSEED`` for another budget, with
-    ``-bN`` (an exploration batch of N set by ``--batch``), ``-full`` (one model, ``--full``),
-    ``-centring-always`` or ``-centring-off`` (``--centering``) and ``-from-NAME+...`` (the
-    start layouts, ``--start``) before ``-sSEED``."""
+    ``-bN`` (``--batch``), ``-full``, ``-centring-always|off`` (``--centering``) and
+    ``-from-NAME+...`` (the start layouts, ``--start``) before ``-sSEED``."""
     tag = "" if budget == "default" else f"-{budget}"
     tag += ("" if batch is None else f"-b{batch}") + ("-full" if full else "")
     tag += "" if centering in (None, "auto") else f"-centring-{centering}"
@@ -162,9 +161,8 @@ def optimize_scenario(
         draw of these ranges (noisy labels: the model learns the success probability under
         physical errors); part of the run's identity, ``-physics`` ends the default directory.
     full : one success model for the whole graph (``factorized=False``; paper Fig. 16).
-    centering : ``"auto"``, ``"always"`` or ``"off"``: when the chosen layout is centred by
-        simulation (``LearningSettings.centering``) instead of the settings'; part of the
-        run's identity, and of the default directory unless ``"auto"``.
+    centering : ``LearningSettings.centering`` instead of the settings' (``"auto"``,
+        ``"always"`` or ``"off"``); part of the run's identity and default directory.
     starts : the user's layouts to start from (``--start``: names of the scenario's layouts
         or layout files, :mod:`rgmcad.runs.starts`), checked before any simulation;
         simulated first by the exploration and always candidates of the final choice. Part
@@ -180,8 +178,7 @@ def optimize_scenario(
     scenario = load_scenario(scenario_path, parts_dir=parts_dir)
     settings = budget_settings(budget) if settings is None else settings
     settings = settings.replace(factorized=False) if full else settings
-    if centering is not None:
-        settings = settings.replace(centering=centering)  # checked by LearningSettings
+    settings = settings if centering is None else settings.replace(centering=centering)
     given = run_dir is not None
     if batch is not None:
         check_range(batch, 1, MAX_BATCH, "batch", "a number of simulations per batch")
@@ -277,15 +274,6 @@ def _at_layout(model, result, chosen: dict, x: np.ndarray):
     return per_event, probability, weakest, weakest_probability, tol
 
 
-def _by_stage(learning: dict, chosen: dict) -> dict:
-    """Simulations per stage: the learner's, then the final choice's, its centring apart."""
-    centring = chosen["n_centering_simulations"]
-    out = {**learning, "verification": chosen["n_simulations"] - centring}
-    if centring:
-        out["centering"] = centring
-    return out
-
-
 def _readable_json(path: Path) -> bool:
     try:
         json.loads(path.read_text())
@@ -348,7 +336,7 @@ def _write_outputs(scenario, store, recorded, result, chosen, wall_time, seed, b
                          "status": result.optimization.status},
         "simulations": len(stored),
         "evaluations": result.n_total_simulations + chosen["n_simulations"],
-        "simulations_by_stage": _by_stage(result.n_simulations, chosen),
+        "simulations_by_stage": {**result.n_simulations, **chosen["by_stage"]},
         "verification": chosen["candidates"],
         "centering": chosen["centering"],
         "verify_noise": result.settings.verify_noise, "error_radius": result.settings.error_radius,
