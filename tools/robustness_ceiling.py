@@ -38,6 +38,7 @@ from rgmcad.runs.dense import dense_curve, dense_valid_set
 from rgmcad.runs.executor import make_executor
 from rgmcad.runs.problem import ScenarioProblem, scenario_digest
 from rgmcad.runs.store import RecordedProblem, RunStore
+from rgmcad.scene.perturbation import DEFAULT_PHYSICS
 from rgmcad.sim.run import Outcome
 
 
@@ -96,6 +97,11 @@ def _markdown(name: str, out: dict) -> str:
                         for e in t["evaluations"])
         lines.append(f"| {i + 1} | {t['dense_rho_g']:.3f} | {t['rho_g_mean']:.3f} | {per} | "
                      + ", ".join(f"{v:.3f}" for v in t["vector"]) + " |")
+    with_physics = [t for t in out["top"] if all("physics" in e for e in t["evaluations"])]
+    lines += [f"| {out['top'].index(t) + 1} (+ physical errors) | | "
+              f"{np.mean([e['physics'] for e in t['evaluations']]):.3f} | "
+              + "; ".join(f"{e['physics']:.3f}" for e in t["evaluations"]) + " | |"
+              for t in with_physics]
     lines += ["", f"**Ceiling** (best evaluated): {out['ceiling']:.3f}.", ""]
     if "methods" in out:
         lines += ["| method | mean rho_g (benchmark) | share of the ceiling | mean dense rho_g "
@@ -122,6 +128,8 @@ def main() -> None:
                     help="evaluation draws: the benchmark trial seeds, e.g. 0,1,2")
     ap.add_argument("--seed", type=int, default=0, help="the Sobol set's scramble")
     ap.add_argument("--benchmark", default=None, help="a finished benchmark's folder")
+    ap.add_argument("--physics", action="store_true",
+                    help="also evaluate under placement plus physical errors (default ranges)")
     ap.add_argument("--workers", type=int, default=2, choices=(1, 2))
     ap.add_argument("--build", default=str(DEFAULT_BUILD_DIR))
     args = ap.parse_args()
@@ -160,10 +168,13 @@ def main() -> None:
                             "samples": args.samples}
                 e = evaluate_trial(identity, out_dir / f"eval-{rank}-s{seed}", problem, executor,
                                    winners[i], args.samples, seed, _Quiet(f"layout {rank + 1}"),
-                                   physics=None)
+                                   physics=DEFAULT_PHYSICS if args.physics else None)
                 simulations += e["simulations"]
                 evaluations.append({"seed": seed, "rho_g": e["rho_g"],
                                     "interval": e["rho_g_interval"]})
+                if e["physics"] is not None:
+                    simulations += e["physics"]["simulations"]
+                    evaluations[-1]["physics"] = e["physics"]["rho_g"]
             top.append({"vector": winners[i].tolist(), "dense_rho_g": float(scores[i]),
                         "rho_g_mean": float(np.mean([e["rho_g"] for e in evaluations])),
                         "evaluations": evaluations})
