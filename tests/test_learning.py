@@ -725,6 +725,7 @@ def test_on_a_plateau_the_exploration_wanders_instead_of_circling_its_first_samp
                                 "e1": OracleEvent(("e0",), (1,), BoxRegion((2.0,), (3.0,)))})
     settings = LearningSettings(n_initial=64, n_successes=20, exploration_batch=5,
                                 exploration_max_iter=80)
+
     def reach(res):
         counts = np.array([lab.n_success for lab in res.labels])
         first = res.X[np.flatnonzero(counts == 1)[:20]]

@@ -31,12 +31,17 @@ from scipy.stats import kendalltau, spearmanr
 
 from rgmcad.files import write_atomic, write_json_atomic
 from rgmcad.parts.store import DEFAULT_BUILD_DIR
-from rgmcad.runs.dense import balls_of, dense_curve, dense_valid_set, local_points
+from rgmcad.runs.dense import (
+    balls_of,
+    dense_curve,
+    dense_valid_set,
+    local_points,
+    simulated_outcomes,
+)
 from rgmcad.runs.executor import make_executor
 from rgmcad.runs.problem import ScenarioProblem, scenario_digest
 from rgmcad.runs.robustness import EPS_GRID
 from rgmcad.runs.store import RecordedProblem, RunStore
-from rgmcad.sim.run import Outcome
 
 Z = 1.959964
 
@@ -62,18 +67,12 @@ def _layouts(bench_dir: Path) -> tuple[dict, list[dict]]:
     return table, out
 
 
-def _simulate(recorded: RecordedProblem, X: np.ndarray, what: str, chunk: int = 1024):
+def _simulate(recorded: RecordedProblem, X: np.ndarray, what: str):
     """Outcomes (success bool, valid bool) and simulation seconds of the rows of X, journaled."""
-    success, valid, seconds = [], [], 0.0
     t = time.perf_counter()
-    for i in range(0, len(X), chunk):
-        records = recorded.simulate_records(X[i:i + chunk])
-        success += [r.outcome is Outcome.SUCCESS for r in records]
-        valid += [r.valid for r in records]
-        seconds += sum(r.seconds for r in records)
-        print(f"  {what}: {min(i + chunk, len(X))}/{len(X)} ({time.perf_counter() - t:.0f} s)",
-              file=sys.stderr, flush=True)
-    return np.array(success, dtype=bool), np.array(valid, dtype=bool), seconds
+    return simulated_outcomes(recorded, X, on_chunk=lambda done: print(
+        f"  {what}: {done}/{len(X)} ({time.perf_counter() - t:.0f} s)", file=sys.stderr,
+        flush=True))
 
 
 def _large_radii(layouts, dense_X, dense_ok, curves_ours, cut: float) -> dict:

@@ -34,12 +34,11 @@ import numpy as np
 from rgmcad.files import write_atomic, write_json_atomic
 from rgmcad.parts.store import DEFAULT_BUILD_DIR
 from rgmcad.runs.benchmark import evaluate_trial
-from rgmcad.runs.dense import dense_curve, dense_valid_set
+from rgmcad.runs.dense import dense_curve, dense_valid_set, simulated_outcomes
 from rgmcad.runs.executor import make_executor
 from rgmcad.runs.problem import ScenarioProblem, scenario_digest
 from rgmcad.runs.store import RecordedProblem, RunStore
 from rgmcad.scene.perturbation import DEFAULT_PHYSICS
-from rgmcad.sim.run import Outcome
 
 
 class _Quiet:
@@ -147,14 +146,9 @@ def main() -> None:
                       dimension=problem.dimension, events=events) as store:
             rec = RecordedProblem(problem, store, executor)
             X = dense_valid_set(rec.validity, problem.dimension, args.n, args.seed)
-            ok, valid = [], []
-            for i in range(0, len(X), 512):
-                records = rec.simulate_records(X[i:i + 512])
-                ok += [r.outcome is Outcome.SUCCESS for r in records]
-                valid += [r.valid for r in records]
-                print(f"  dense set: {min(i + 512, len(X))}/{len(X)} "
-                      f"({time.perf_counter() - t0:.0f} s)", file=sys.stderr, flush=True)
-            ok, valid = np.array(ok, dtype=bool), np.array(valid, dtype=bool)
+            ok, valid, _ = simulated_outcomes(rec, X, 512, lambda done: print(
+                f"  dense set: {done}/{len(X)} ({time.perf_counter() - t0:.0f} s)",
+                file=sys.stderr, flush=True))
             X, ok = X[valid], ok[valid]
             simulations += len(X)
         winners = X[ok]

@@ -191,12 +191,9 @@ def verify_layout(
                              batch=settings.centering_batch,
                              hit_rate=settings.centering_hit_rate)
     before_centring = n_sims
-    n_sims += centring.n_simulations
-    if np.array_equal(centring.x, chosen.x):
-        return Verification(chosen, True, optimum, tuple(tested), n_sims, centring,
-                            n_centering_simulations=n_sims - before_centring)
-    n_sims += 1  # the centre itself
-    if not simulate(centring.x[None, :])[0].success:
+    moved = not np.array_equal(centring.x, chosen.x)
+    n_sims += centring.n_simulations + moved  # and the centre's own simulation
+    if not moved or not simulate(centring.x[None, :])[0].success:
         return Verification(chosen, True, optimum, tuple(tested), n_sims, centring,
                             n_centering_simulations=n_sims - before_centring)
     # the centre against the layout it came from, at more errors than the choice among

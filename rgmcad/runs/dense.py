@@ -30,8 +30,9 @@ from rgmcad.runs.robustness import (
     trapezoid_weights,
     wilson_interval,
 )
+from rgmcad.sim.run import Outcome
 
-__all__ = ["dense_valid_set", "local_points", "dense_curve", "balls_of"]
+__all__ = ["dense_valid_set", "simulated_outcomes", "local_points", "dense_curve", "balls_of"]
 
 
 def dense_valid_set(validity: Callable[[np.ndarray], np.ndarray], dimension: int, n: int,
@@ -59,6 +60,28 @@ def dense_valid_set(validity: Callable[[np.ndarray], np.ndarray], dimension: int
         kept.append(X[ok][: n - n_kept])
         n_kept += len(kept[-1])
     return np.vstack(kept) if kept else np.empty((0, dimension))
+
+
+def simulated_outcomes(recorded, X: np.ndarray, chunk: int = 1024,
+                       on_chunk: Callable[[int], None] | None = None):
+    """Simulate the rows of ``X`` through ``recorded`` (a
+    :class:`~rgmcad.runs.store.RecordedProblem`: journaled, replayed when known) in chunks.
+
+    Returns
+    -------
+    success, valid : (n,) bool
+    seconds : float
+        Their simulation time. ``on_chunk(done)`` is called after each chunk.
+    """
+    success, valid, seconds = [], [], 0.0
+    for i in range(0, len(X), chunk):
+        records = recorded.simulate_records(X[i:i + chunk])
+        success += [r.outcome is Outcome.SUCCESS for r in records]
+        valid += [r.valid for r in records]
+        seconds += sum(r.seconds for r in records)
+        if on_chunk is not None:
+            on_chunk(min(i + chunk, len(X)))
+    return np.array(success, dtype=bool), np.array(valid, dtype=bool), seconds
 
 
 def local_points(x: np.ndarray, n: int, rng: np.random.Generator, eta: float = ETA) -> np.ndarray:
