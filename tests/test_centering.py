@@ -211,11 +211,17 @@ def test_a_run_whose_exploration_fell_short_is_centred(tmp_path):
     assert by_stage["exploration"] == TINY.n_initial + 2 * 10  # to the cap
     assert by_stage["centering"] >= 32 + 1 and by_stage["verification"] >= 1
     assert sum(by_stage.values()) == run.summary["evaluations"]
+    explored = run.summary["exploration"]  # what the run's result says of its exploration
+    assert explored["samples"] == by_stage["exploration"] and explored["iterations"] == 2
+    assert explored["successes"] < 10_000 and explored["stalled_at"] in (None, 0, 1, 2)
+    report = (tmp_path / "short" / "report.md").read_text()
+    assert f"exploration: {explored['samples']} samples, {explored['successes']} global" in report
     full = optimize_scenario(SIMPLE, seed=0, settings=TINY.replace(centering_simulations=32),
                              run_dir=tmp_path / "enough", workers=1)
     # 60 exploration samples, stopped by N+ (measured: not at the cap of 40 + 8 x 10)
     assert full.summary["simulations_by_stage"]["exploration"] < 120
     assert full.summary["centering"] is None
+    assert full.summary["exploration"]["successes"] >= TINY.n_successes
     assert "centering" not in full.summary["simulations_by_stage"]
 
 

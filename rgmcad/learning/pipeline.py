@@ -87,6 +87,11 @@ class LearningResult:
         Cross-validated accuracy history of each learnt factor.
     optimization : OptimizationResult
     settings : LearningSettings
+    exploration_iterations : int
+        Adaptive iterations the exploration ran after its Sobol batch.
+    exploration_stalled_at : int or None
+        The iteration after which the exploration counted as stalled
+        (:attr:`~.sampling.Exploration.stalled_at`), or None.
     """
 
     x: np.ndarray
@@ -106,6 +111,8 @@ class LearningResult:
     accuracy: Mapping[str, tuple[float, ...]]
     optimization: OptimizationResult
     settings: LearningSettings
+    exploration_iterations: int = 0
+    exploration_stalled_at: int | None = None
 
     @property
     def n_total_simulations(self) -> int:
@@ -117,6 +124,14 @@ class LearningResult:
         """Global successes among the exploration's samples (the user's starts included)."""
         return sum(lab.success for lab, stage in zip(self.labels, self.stages, strict=True)
                    if stage == "exploration")
+
+    def exploration_summary(self) -> dict:
+        """The exploration in numbers (for ``result.json``): samples, global successes,
+        adaptive iterations, and the iteration it stalled at (None if it never did)."""
+        return {"samples": self.n_simulations.get("exploration", 0),
+                "successes": self.n_exploration_successes,
+                "iterations": self.exploration_iterations,
+                "stalled_at": self.exploration_stalled_at}
 
 
 class _Recorder:
@@ -280,6 +295,8 @@ def learn_and_optimize(
         accuracy=fit.accuracy,
         optimization=opt,
         settings=settings,
+        exploration_iterations=exploration.n_iterations,
+        exploration_stalled_at=exploration.stalled_at,
     )
     report("done", f"P(success) {result.probability:.4f}, weakest {weakest!r}")
     return result

@@ -44,6 +44,7 @@ def report_markdown(scenario, s: dict, low, high) -> str:
              f"{'yes' if s['verified'] else 'NO'}",
              f"- simulations: {s['simulations']} ({s['successes']} successes; by stage: "
              + ", ".join(f"{k} {v}" for k, v in s["simulations_by_stage"].items()) + ")",
+             *_exploration_lines(s.get("exploration")),
              f"- wall time: {s['wall_time']:.0f} s (simulation {s['simulation_seconds']:.0f} "
              "s of CPU)",
              f"- refinement: objective {s['optimization']['objective_start']:.3f} -> "
@@ -82,6 +83,15 @@ def report_markdown(scenario, s: dict, low, high) -> str:
     lines += ["", "## Plots", "", f"![probability slice]({SLICE_PLOT})", "",
               f"![robustness]({ROBUSTNESS_PLOT})", "", f"![exploration]({PROGRESS_PLOT})", ""]
     return "\n".join(lines)
+
+
+def _exploration_lines(e) -> list[str]:
+    if not e:
+        return []
+    stalled = ("" if e["stalled_at"] is None else f"; stalled after iteration {e['stalled_at']} "
+               "(its parents stopped changing), newest samples first from then")
+    return [f"- exploration: {e['samples']} samples, {e['successes']} global successes, "
+            f"{e['iterations']} adaptive iterations{stalled}"]
 
 
 def _robustness_lines(r: dict | None) -> list[str]:

@@ -49,14 +49,7 @@ from rgmcad.runs.report import (
     report_markdown,
 )
 from rgmcad.runs.starts import check_starts_valid, choose_layout, resolve_starts, starts_tag
-from rgmcad.runs.store import (
-    MODEL,
-    SETTINGS,
-    SIMULATIONS,
-    RecordedProblem,
-    RunStore,
-    run_identity,
-)
+from rgmcad.runs.store import MODEL, SETTINGS, SIMULATIONS, RecordedProblem, RunStore, run_identity
 from rgmcad.scene.perturbation import DEFAULT_PHYSICS, PhysicsRanges
 from rgmcad.sim.run import Outcome
 
@@ -337,6 +330,7 @@ def _write_outputs(scenario, store, recorded, result, chosen, wall_time, seed, b
         "simulations": len(stored),
         "evaluations": result.n_total_simulations + chosen["n_simulations"],
         "simulations_by_stage": {**result.n_simulations, **chosen["by_stage"]},
+        "exploration": result.exploration_summary(),
         "verification": chosen["candidates"],
         "centering": chosen["centering"],
         "verify_noise": result.settings.verify_noise, "error_radius": result.settings.error_radius,
