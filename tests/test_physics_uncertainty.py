@@ -167,6 +167,12 @@ def test_optimize_reports_both_robustness_figures(tmp_path):
         assert 0 <= low <= figure["rho_g"] <= high <= 1
     report = (tmp_path / "run" / "report.md").read_text()
     assert "placement errors" in report and "placement plus physical errors" in report
+    # the summary a person reads counts the estimate's simulations apart from the run's
+    code, out, _ = _evaluate(["optimize", RAMP, "--budget", "small", "--robustness", "1",
+                              "--workers", "1", "--run", str(tmp_path / "run")])
+    estimate = robustness["simulations"] + robustness["physics"]["simulations"]
+    assert code == 0 and estimate == 2 * 30
+    assert f"replayed) and {estimate} for the rho_g estimate in" in out
 
 
 @pytest.mark.parametrize("argv, flag", [
