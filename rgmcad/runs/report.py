@@ -89,7 +89,7 @@ def _exploration_lines(e) -> list[str]:
     if not e:
         return []
     stalled = ("" if e["stalled_at"] is None else f"; stalled after iteration {e['stalled_at']} "
-               "(its parents stopped changing), newest samples first from then")
+               "(the samples it draws around stopped changing), newest samples first from then")
     return [f"- exploration: {e['samples']} samples, {e['successes']} global successes, "
             f"{e['iterations']} adaptive iterations{stalled}"]
 
