@@ -115,12 +115,10 @@ def show(summary: dict, as_json: bool, wall_time: float | None = None) -> None:
         f"); {summary['source']}")
     for line in physics.robustness_lines(summary):
         say(line)
-    r = summary.get("robustness") or {}
-    estimate = r.get("simulations", 0) + (r.get("physics") or {}).get("simulations", 0)
+    estimate = physics.estimate_simulations(summary)
+    extra = f" and {estimate} for the rho_g estimate" if estimate else ""
     say(f"{summary['simulations']} simulations ({summary['successes']} successes, "
-        f"{summary['replayed']} replayed)"
-        + (f" and {estimate} for the rho_g estimate" if estimate else "")
-        + f" in {summary['wall_time']:.0f} s")
+        f"{summary['replayed']} replayed){extra} in {summary['wall_time']:.0f} s")
     say("placement tolerances (down / up):")
     for name, (down, up) in summary["tolerances"].items():
         unit = "deg" if name.split(".")[-1] in ("heading", "pitch", "roll") else "mm"

@@ -54,6 +54,12 @@ def robustness_options(args) -> dict:
             "physics_noise": ranges if args.physics_noise else None}
 
 
+def estimate_simulations(summary: dict) -> int:
+    """Simulations of the run summary's rho_g estimate, both kinds of error (0 when none)."""
+    r = summary.get("robustness") or {}
+    return r.get("simulations", 0) + (r.get("physics") or {}).get("simulations", 0)
+
+
 def robustness_lines(summary: dict) -> list[str]:
     """The run summary's two rho_g figures, one line each (none when not estimated)."""
     r = summary.get("robustness") or {}
