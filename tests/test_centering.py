@@ -200,8 +200,9 @@ def test_a_run_whose_exploration_fell_short_is_centred(tmp_path):
 
     from rgmcad.runs.workflow import optimize_scenario
 
+    # (stalled after one unchanged batch, so that the record of a stall is seen too)
     short = TINY.replace(n_successes=10_000, exploration_max_iter=2, centering_simulations=32,
-                         centering_check_samples=16)
+                         centering_check_samples=16, exploration_stall_batches=1)
     run = optimize_scenario(SIMPLE, seed=0, settings=short, run_dir=tmp_path / "short",
                             workers=1)
     c = run.summary["centering"]
@@ -213,15 +214,18 @@ def test_a_run_whose_exploration_fell_short_is_centred(tmp_path):
     assert sum(by_stage.values()) == run.summary["evaluations"]
     explored = run.summary["exploration"]  # what the run's result says of its exploration
     assert explored["samples"] == by_stage["exploration"] and explored["iterations"] == 2
-    assert explored["successes"] < 10_000 and explored["stalled_at"] in (None, 0, 1, 2)
+    assert explored["successes"] < 10_000 and explored["stalled_at"] in (1, 2)
     report = (tmp_path / "short" / "report.md").read_text()
     assert f"exploration: {explored['samples']} samples, {explored['successes']} global" in report
+    assert f"stalled after iteration {explored['stalled_at']}" in report
     full = optimize_scenario(SIMPLE, seed=0, settings=TINY.replace(centering_simulations=32),
                              run_dir=tmp_path / "enough", workers=1)
     # 60 exploration samples, stopped by N+ (measured: not at the cap of 40 + 8 x 10)
     assert full.summary["simulations_by_stage"]["exploration"] < 120
     assert full.summary["centering"] is None
     assert full.summary["exploration"]["successes"] >= TINY.n_successes
+    assert full.summary["exploration"]["stalled_at"] is None
+    assert "stalled" not in (tmp_path / "enough" / "report.md").read_text()
     assert "centering" not in full.summary["simulations_by_stage"]
 
 
