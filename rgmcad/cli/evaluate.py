@@ -69,6 +69,10 @@ def run(args) -> int:
         low, high = phys["rho_g_interval"]
         say(f"  rho_g = {phys['rho_g']:.3f} [{low:.3f}, {high:.3f}] under placement plus "
             f"physical errors ({physics.describe()})")
+    from rgmcad.runs.robustness import close_in_warning
+
+    if warning := close_in_warning(result):
+        say(f"warning: {warning}")
     say("eps     rho_l   95 % interval" + ("      + physics" if phys else ""))
     rows = zip(result["curve"], phys["curve"] if phys else [None] * len(result["curve"]),
                strict=True)

@@ -68,4 +68,8 @@ def robustness_lines(summary: dict) -> list[str]:
         if fig:
             low, high = fig["rho_g_interval"]
             out.append(f"rho_g under {what} errors: {fig['rho_g']:.3f} [{low:.3f}, {high:.3f}]")
-    return out
+    from rgmcad.runs.robustness import close_in_warning  # not at start: the CLI starts light
+
+    warning = close_in_warning(r)
+    return out + ([f"warning: {warning} (`rgmcad evaluate` measures it with more layouts)"]
+                  if warning else [])

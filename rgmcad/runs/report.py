@@ -13,6 +13,8 @@ from pathlib import Path
 
 import numpy as np
 
+from rgmcad.runs.robustness import close_in_warning
+
 __all__ = ["REPORT_FILE", "SLICE_PLOT", "PROGRESS_PLOT", "ROBUSTNESS_PLOT", "ERROR_GRID",
            "report_markdown", "plot_slice", "plot_progress", "plot_robustness",
            "predicted_robustness", "user_scale"]
@@ -108,7 +110,9 @@ def _robustness_lines(r: dict | None) -> list[str]:
         ranges = ", ".join(f"{k} +-{v:.0%}" for k, v in p["ranges"].items())
         out.append(f"- rho_g under placement plus physical errors ({ranges}): "
                    f"**{p['rho_g']:.3f}** [{low:.3f}, {high:.3f}]")
-    return out
+    warning = close_in_warning(r)
+    return out + ([f"- **warning**: {warning} (`rgmcad evaluate` measures it with more "
+                   "layouts)"] if warning else [])
 
 
 def _pyplot():

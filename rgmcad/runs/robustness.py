@@ -54,7 +54,8 @@ from rgmcad.scene.perturbation import PhysicsDraw, PhysicsRanges
 from rgmcad.sim.run import Outcome
 
 __all__ = ["ETA", "EPS_GRID", "RobustnessCurve", "ball_samples", "wilson_interval",
-           "local_robustness", "robustness_on", "figures", "plot_curves", "trapezoid_weights"]
+           "local_robustness", "robustness_on", "figures", "plot_curves", "trapezoid_weights",
+           "close_in_warning"]
 
 ETA = 1.0 / 300.0
 """Offset added to every radius (the authors' ``1 / (10 N_STEPS)``)."""
@@ -268,6 +269,21 @@ def figures(curve: RobustnessCurve, physics: PhysicsRanges | None = None) -> dic
                           "rho_g": p.rho_g, "rho_g_interval": [p.rho_g_low, p.rho_g_high],
                           "curve": p.curve(), "simulations": p.simulations}
     return out
+
+
+def close_in_warning(figure: dict | None) -> str | None:
+    """When the layouts closest to the one measured (its first radius, ``ETA``) did not all
+    succeed in :func:`figures`' output: a sentence saying so, else None. rho_g gives that
+    radius one thirtieth of its weight, so a layout can score well and still fail where it is
+    placed exactly (a chain balanced on a knife edge)."""
+    if not figure or not figure.get("curve") or not figure.get("counts"):
+        return None
+    n = int(figure["counts"][0])
+    wins = round(figure["curve"][0][1] * n)
+    if n == 0 or wins == n:
+        return None
+    return (f"only {wins} of the {n} layouts within 1/300 of this one succeeded: it may fail "
+            "even when placed exactly")
 
 
 def _curve(x, eps, sizes, records, n_tested, z, eta) -> RobustnessCurve:
