@@ -748,3 +748,23 @@ def test_exploration_step_is_the_papers_wherever_draws_keep_their_progress():
     assert min(held.keep_rates) >= settings.exploration_keep_rate  # the premise
     np.testing.assert_array_equal(held.X, paper.X)
     assert set(held.step_scales) == {1.0}
+
+
+def test_a_parameter_no_model_depends_on_goes_to_the_median_of_the_successes():
+    # the third coordinate matters to no event: the refinement cannot move it, and with
+    # unmodelled_at = "median" the layout takes the successes' median there instead of
+    # wherever its start sample had it; what the model depends on is left as refined
+    oracle = ProductOracle(3, {
+        "push": OracleEvent(),
+        "roll": OracleEvent(("push",), (0, 1), BoxRegion((0.2, 0.2), (0.8, 0.8)))})
+    start = learn_and_optimize(oracle, TINY, np.random.default_rng(5))
+    median = learn_and_optimize(oracle, TINY.replace(unmodelled_at="median"),
+                                np.random.default_rng(5))
+    used = {j for e in median.model.learned_events for j in median.model.models[e].dims_}
+    assert 2 not in used
+    won = np.array([lab.success for lab in median.labels])
+    assert median.x[2] == pytest.approx(float(np.median(median.X[won, 2])))
+    assert median.x[2] != pytest.approx(start.x[2], abs=1e-3)
+    assert np.array_equal(median.x[:2], start.x[:2])
+    with pytest.raises(ValueError, match="unmodelled_at"):
+        TINY.replace(unmodelled_at="middle")

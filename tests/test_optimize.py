@@ -192,6 +192,17 @@ def test_run_store_refuses_other_settings_and_a_second_user(tmp_path):
     assert "settings.retired_option: run has None, command asks nothing" in str(refused.value)
 
 
+def test_a_run_directory_made_before_a_setting_was_added_still_resumes(tmp_path):
+    # what older rgmcad wrote had no `unmodelled_at`; its value then was "start"
+    older = run_identity("s", "0" * 64, 0, TINY)
+    assert "unmodelled_at" not in older["settings"]
+    (tmp_path / "settings.json").write_text(json.dumps(older))
+    RunStore(tmp_path, run_identity("s", "0" * 64, 0, TINY.replace(unmodelled_at="start"))).close()
+    with pytest.raises(RunDirectoryError, match="unmodelled_at: run has nothing, command asks "
+                       "'median'"):
+        RunStore(tmp_path, run_identity("s", "0" * 64, 0, TINY.replace(unmodelled_at="median")))
+
+
 class _LoggingPool:
     """Executor stand-in whose workers' context is ``context``: runs ``map_context`` lazily,
     as a pool hands results back, and logs which function each call ran."""

@@ -43,6 +43,7 @@ __all__ = [
     "start_points",
     "maximize_robustness",
     "placement_tolerance",
+    "place_unmodelled",
 ]
 
 logger = logging.getLogger(__name__)
@@ -224,6 +225,23 @@ _STATUS = {
     nlopt.MAXEVAL_REACHED: "maxeval reached",
     nlopt.MAXTIME_REACHED: "maxtime reached",
 }
+
+
+def place_unmodelled(model: SPDModel, x: np.ndarray, successes: np.ndarray,
+                     penetration: PenetrationFn) -> np.ndarray:
+    """``x`` (d,) with each coordinate that no event's model depends on moved to the median
+    of ``successes`` (k, d) along it, one coordinate at a time, each move kept only if the
+    layout stays valid (``penetration`` 0). The refinement cannot move such a coordinate and
+    leaves it where its start sample had it, which can be where the chain barely works
+    (``LearningSettings.unmodelled_at``)."""
+    x = np.asarray(x, dtype=float).copy()
+    used = {j for e in model.learned_events for j in model.models[e].dims_}
+    for j in sorted(set(range(len(x))) - used) if len(successes) else []:
+        moved = x.copy()
+        moved[j] = float(np.median(successes[:, j]))
+        if penetration(moved) <= 0.0:
+            x = moved
+    return x
 
 
 def placement_tolerance(

@@ -18,7 +18,13 @@ import numpy as np
 
 from .dimensions import EventAnalysis
 from .factorize import SPDModel, fit_spd
-from .optimize import OptimizationResult, maximize_robustness, placement_tolerance, start_points
+from .optimize import (
+    OptimizationResult,
+    maximize_robustness,
+    place_unmodelled,
+    placement_tolerance,
+    start_points,
+)
 from .oracles import Label, Problem
 from .sampling import explore
 from .settings import LearningSettings
@@ -267,6 +273,9 @@ def learn_and_optimize(
     report("optimization", f"objective {opt.objective_start:.4f} -> {opt.objective:.4f}")
 
     x = opt.x
+    if settings.unmodelled_at == "median":  # the run's successes, so far
+        won = [k for k, lab in enumerate(record.labels) if lab.success]
+        x = place_unmodelled(model, x, np.vstack(record.X)[won], problem.penetration)
     per_event = {e: float(p[0]) for e, p in model.event_probabilities(x).items()}
     probability = float(model.success_proba(x)[0])
     weakest, _ = model.weakest_link(x)

@@ -234,6 +234,12 @@ class LearningSettings:
         always one whose penetration was exactly 0.
     fd_step : float, default 1e-4
         Forward finite-difference step for the penetration's gradient ("auglag" only).
+    unmodelled_at : {"start", "median"}, default "start"
+        Added by rgmcad, to measure: where the refined layout puts a parameter no event's
+        model depends on (the refinement cannot move it): "start", where its start sample
+        had it (the paper); "median", at the median of the run's simulated successes along
+        it, each kept only if the layout stays valid. See docs/decisions.md, "Held-out
+        scenarios, second look".
     verify_candidates : int, default 4
         Added by rgmcad: layouts compared by simulation at the end (the optimum if it
         succeeds, then the simulated global successes the model rates highest); see
@@ -324,6 +330,7 @@ class LearningSettings:
     optimizer_initial_step: float = 0.05
     constraint_tolerance: float = 1e-6
     fd_step: float = 1e-4
+    unmodelled_at: Literal["start", "median"] = "start"
     # Choice of the final layout
     verify_candidates: int = 4
     verify_samples: int = 32
@@ -349,18 +356,16 @@ class LearningSettings:
         for name in positive_ints:
             value = getattr(self, name)
             if int(value) != value or value < 1:
-                raise ValueError(
-                    f"LearningSettings.{name} must be a positive integer, got {value!r}"
-                )
+                raise ValueError(f"LearningSettings.{name} must be a positive integer, got "
+                                 f"{value!r}")
         for name in ("exploration_max_iter", "exploration_lag", "exploration_stall_batches",
                      "active_max_iter",
                      "tolerance_bisections", "mi_null_permutations", "verify_samples",
                      "centering_simulations"):
             value = getattr(self, name)
             if int(value) != value or value < 0:
-                raise ValueError(
-                    f"LearningSettings.{name} must be a non-negative integer, got {value!r}"
-                )
+                raise ValueError(f"LearningSettings.{name} must be a non-negative integer, "
+                                 f"got {value!r}")
         for name in ("accuracy_target", "quasi_deterministic_rate", "exploration_keep_rate",
                      "mi_relative_threshold", "parent_probability_min", "tolerance_ratio"):
             value = getattr(self, name)
@@ -383,26 +388,19 @@ class LearningSettings:
         if not 0.0 < self.centering_hit_rate < 1.0:
             raise ValueError("LearningSettings.centering_hit_rate must lie in (0, 1), got "
                              f"{self.centering_hit_rate!r}")
-        if self.centering not in ("auto", "always", "off"):
-            raise ValueError("LearningSettings.centering must be 'auto', 'always' or 'off', "
-                             f"got {self.centering!r}")
+        for name, allowed in (("centering", ("auto", "always", "off")),
+                              ("unmodelled_at", ("start", "median")),
+                              ("mi_selection", ("forward", "marginal")),
+                              ("optimizer", ("cobyla", "auglag", "slsqp"))):
+            if getattr(self, name) not in allowed:
+                raise ValueError(f"LearningSettings.{name} must be one of {allowed}, got "
+                                 f"{getattr(self, name)!r}")
         if self.centering != "off" and self.centering_simulations and not self.verify_samples:
             raise ValueError("LearningSettings.centering_simulations needs verify_samples > 0 "
                              "(the centre is judged by the final choice's errors)")
         if not 0.0 <= self.error_radius <= 2.0:
-            raise ValueError(
-                f"LearningSettings.error_radius must lie in [0, 2], got {self.error_radius!r}"
-            )
-        if self.mi_selection not in ("forward", "marginal"):
-            raise ValueError(
-                "LearningSettings.mi_selection must be 'forward' or 'marginal', "
-                f"got {self.mi_selection!r}"
-            )
-        if self.optimizer not in ("cobyla", "auglag", "slsqp"):
-            raise ValueError(
-                "LearningSettings.optimizer must be 'cobyla', 'auglag' or 'slsqp', "
-                f"got {self.optimizer!r}"
-            )
+            raise ValueError(f"LearningSettings.error_radius must lie in [0, 2], got "
+                             f"{self.error_radius!r}")
         if not self.svm_C_grid or not self.svm_gamma_grid or not self.svm_class_weights:
             raise ValueError("LearningSettings: the SVM grids must not be empty")
         bad = [w for w in self.svm_class_weights if w not in (None, "balanced")]

@@ -3,9 +3,9 @@ interruption.
 
 Files::
 
-    settings.json      what the run is: scenario name and SHA-256 of its file, seed, every
-                       LearningSettings field. Written once; a later command on the same folder
-                       must match it or is refused.
+    settings.json      what the run is: scenario name and SHA-256 of its file, seed, the
+                       LearningSettings (:func:`run_identity`). Written once; a later command
+                       on the same folder must match it or is refused.
     simulations.jsonl  one line per finished simulation, written and flushed to the operating
                        system as it arrives and fsynced after each batch: {"i", "vector",
                        "valid", "outcome", "events": {name: [label, time]}, "seconds"}.
@@ -68,8 +68,9 @@ MODEL = "model.pkl"
 REJECTED = "simulations.rejected.jsonl"
 FORMAT = 1
 
-# LearningSettings fields that change how fast a run goes, never what it finds.
-_NOT_IDENTITY = ("n_jobs",)
+# LearningSettings fields left out of a run's identity: those that change how fast it goes,
+# never what it finds; and fields added later, at the value older runs had (still resumable)
+_NOT_IDENTITY, _ADDED_LATER = ("n_jobs",), {"unmodelled_at": "start"}
 
 
 def run_identity(scenario_name: str, scenario_sha256: str, seed: int, settings,
@@ -77,7 +78,8 @@ def run_identity(scenario_name: str, scenario_sha256: str, seed: int, settings,
     """The content of ``settings.json`` for a run (JSON types only). ``parts``: the digest
     of each family of a ``--parts`` folder, when the run uses one (runs with the shipped
     families leave it out, as they always have)."""
-    learning = {k: v for k, v in asdict(settings).items() if k not in _NOT_IDENTITY}
+    learning = {k: v for k, v in asdict(settings).items() if k not in _NOT_IDENTITY
+                and _ADDED_LATER.get(k, ...) != v}
     identity = {"format": FORMAT, "scenario": scenario_name, "scenario_sha256": scenario_sha256,
                 "seed": int(seed), "settings": learning}
     if parts is not None:
@@ -97,8 +99,7 @@ class RunStore:
     directory : str or Path
         Created if missing.
     identity : dict
-        :func:`run_identity` of the command. A directory whose ``settings.json`` differs is
-        refused.
+        :func:`run_identity` of the command; a directory whose ``settings.json`` differs is refused.
     dimension, events : optional
         The design space's dimension and the scenario's events: stored lines with another
         vector length or other events are moved aside.
