@@ -70,6 +70,5 @@ def robustness_lines(summary: dict) -> list[str]:
             out.append(f"rho_g under {what} errors: {fig['rho_g']:.3f} [{low:.3f}, {high:.3f}]")
     from rgmcad.runs.robustness import close_in_warning  # not at start: the CLI starts light
 
-    warning = close_in_warning(r)
-    return out + ([f"warning: {warning} (`rgmcad evaluate` measures it with more layouts)"]
-                  if warning else [])
+    warning = close_in_warning(r, point_to_evaluate=True)
+    return out + ([f"warning: {warning}"] if warning else [])

@@ -110,9 +110,8 @@ def _robustness_lines(r: dict | None) -> list[str]:
         ranges = ", ".join(f"{k} +-{v:.0%}" for k, v in p["ranges"].items())
         out.append(f"- rho_g under placement plus physical errors ({ranges}): "
                    f"**{p['rho_g']:.3f}** [{low:.3f}, {high:.3f}]")
-    warning = close_in_warning(r)
-    return out + ([f"- **warning**: {warning} (`rgmcad evaluate` measures it with more "
-                   "layouts)"] if warning else [])
+    warning = close_in_warning(r, point_to_evaluate=True)
+    return out + ([f"- **warning**: {warning}"] if warning else [])
 
 
 def _pyplot():

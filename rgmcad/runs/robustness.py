@@ -271,11 +271,12 @@ def figures(curve: RobustnessCurve, physics: PhysicsRanges | None = None) -> dic
     return out
 
 
-def close_in_warning(figure: dict | None) -> str | None:
+def close_in_warning(figure: dict | None, point_to_evaluate: bool = False) -> str | None:
     """When the layouts closest to the one measured (its first radius, ``ETA``) did not all
-    succeed in :func:`figures`' output: a sentence saying so, else None. rho_g gives that
-    radius one thirtieth of its weight, so a layout can score well and still fail where it is
-    placed exactly (a chain balanced on a knife edge)."""
+    succeed in :func:`figures`' output: a sentence saying so (and that ``rgmcad evaluate``
+    measures it better, with ``point_to_evaluate``), else None. rho_g gives that radius one
+    thirtieth of its weight, so a layout can score well and still fail where it is placed
+    exactly (a chain balanced on a knife edge)."""
     if not figure or not figure.get("curve") or not figure.get("counts"):
         return None
     n = int(figure["counts"][0])
@@ -283,7 +284,8 @@ def close_in_warning(figure: dict | None) -> str | None:
     if n == 0 or wins == n:
         return None
     return (f"only {wins} of the {n} layouts within 1/300 of this one succeeded: it may fail "
-            "even when placed exactly")
+            "even when placed exactly"
+            + (" (`rgmcad evaluate` measures it with more layouts)" if point_to_evaluate else ""))
 
 
 def _curve(x, eps, sizes, records, n_tested, z, eta) -> RobustnessCurve:
