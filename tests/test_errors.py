@@ -112,3 +112,19 @@ def test_optimising_for_global_robustness_lands_in_the_wide_region(seed):
     assert oracle.events["wide"].region.contains(chosen[None, :2])[0]
     assert rho_g_by_evaluation(oracle, chosen, n=1000) > rho_g_by_evaluation(
         oracle, np.r_[0.83, 0.83, chosen[2:]], n=1000) + 0.05
+
+
+def test_interleaved_ball_design_spreads_every_prefix_over_the_radii():
+    # the final choice simulates a ball design's first 32, 64, 128 errors before the rest:
+    # each such prefix must hold every radius equally, and the whole is the same design
+    design = ball_errors(5, 1.0, 256)
+    raced = design.interleaved()
+    for n in (32, 64, 128, 256):
+        assert np.bincount(raced.levels[:n], minlength=8).tolist() == [n // 8] * 8
+    assert sorted(map(tuple, raced.offsets)) == sorted(map(tuple, design.offsets))
+    # and the offsets of one radius keep their order (a prefix is the block's prefix)
+    for level in range(8):
+        np.testing.assert_array_equal(raced.offsets[raced.levels == level],
+                                      design.offsets[design.levels == level])
+    gaussian = gaussian_errors(5, 0.05, 64)
+    assert gaussian.interleaved() is gaussian

@@ -66,6 +66,17 @@ class ErrorDesign:
         mirror_out = (x - F < 0.0) | (x - F > 1.0)
         return F, inside * 0.5 ** mirror_out.sum(axis=1)
 
+    def interleaved(self) -> ErrorDesign:
+        """The same offsets reordered so that every prefix whose length is a multiple of the
+        number of levels holds as many offsets of each level, each level's in its own order
+        (ball designs store their levels as consecutive blocks). A Gaussian design is
+        returned as it is: its Sobol order already spreads every power-of-two prefix."""
+        if self.levels is None:
+            return self
+        position = np.arange(len(self.levels)) - np.searchsorted(self.levels, self.levels)
+        order = np.lexsort((self.levels, position))
+        return ErrorDesign(self.offsets[order], self.levels[order])
+
     def normalized(self, raw: np.ndarray) -> np.ndarray:
         """(k,) weights summing to 1 from raw ones (0 = left out): per radius level
         normalised, then the levels with any weight averaged (all 0 when none has)."""

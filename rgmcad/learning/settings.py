@@ -234,23 +234,26 @@ class LearningSettings:
         always one whose penetration was exactly 0.
     fd_step : float, default 1e-4
         Forward finite-difference step for the penetration's gradient ("auglag" only).
-    unmodelled_at : {"start", "median"}, default "start"
-        Added by rgmcad, to measure: where the refined layout puts a parameter no event's
-        model depends on (the refinement cannot move it): "start", where its start sample
-        had it (the paper); "median", at the median of the run's simulated successes along
-        it, each kept only if the layout stays valid. See docs/decisions.md, "Held-out
-        scenarios, second look".
+    unmodelled_at : {"start", "median"}, default "median"
+        Added by rgmcad: where the refined layout puts a parameter no event's model depends
+        on (the refinement cannot move it): "median", at the median of the run's simulated
+        successes along it, each kept only if the layout stays valid; "start", where its
+        start sample had it (the paper: a parameter can then stay at a bad end of its range
+        by chance). See docs/decisions.md, "Held-out scenarios, second look".
     verify_candidates : int, default 4
         Added by rgmcad: layouts compared by simulation at the end (the optimum if it
         succeeds, then the simulated global successes the model rates highest); see
         :mod:`rgmcad.learning.verify`.
-    verify_samples : int, default 32
-        Errors simulated per candidate (rounded up to a power of two; those of
-        ``error_radius``, else Gaussian ones of ``verify_noise``); 0 keeps
-        the paper's choice (the optimum if its one simulation succeeds, else the best rated
-        simulated success). Why: the refinement maximises the model's prediction, which
-        can be confidently wrong; choosing by simulation returns more robust layouts for a
-        few more simulations. See docs/decisions.md, "Final choice by simulation".
+    verify_samples : int, default 256
+        Most errors simulated per candidate (rounded up to a power of two; those of
+        ``error_radius``, else Gaussian ones of ``verify_noise``): the candidates race from
+        32 errors, doubling, and one significantly below the leader is dropped after each
+        stage; 0 keeps the paper's choice (the optimum if its one simulation succeeds, else
+        the best rated simulated success). Why: the refinement maximises the model's
+        prediction, which can be confidently wrong; choosing by simulation returns more
+        robust layouts, and telling candidates 0.1 apart in rho_g takes a few hundred
+        errors. See docs/decisions.md, "Final choice by simulation" and "A final choice
+        that races".
     verify_noise : float, default 0.05
         With ``error_radius`` 0: standard deviation (normalised units) of those placement
         errors, the same as ``placement_noise`` by default.
@@ -330,10 +333,10 @@ class LearningSettings:
     optimizer_initial_step: float = 0.05
     constraint_tolerance: float = 1e-6
     fd_step: float = 1e-4
-    unmodelled_at: Literal["start", "median"] = "start"
+    unmodelled_at: Literal["start", "median"] = "median"
     # Choice of the final layout
     verify_candidates: int = 4
-    verify_samples: int = 32
+    verify_samples: int = 256
     verify_noise: float = 0.05
     centering: Literal["auto", "always", "off"] = "auto"
     centering_simulations: int = 320

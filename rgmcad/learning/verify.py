@@ -5,13 +5,17 @@ The refinement (section 7) maximises a *model's* prediction; the model can be co
 wrong where it has few samples, and then the optimum fails or works only at the exact point.
 So the final choice is made by the simulator: each candidate (the optimum, and the simulated
 global successes the model rates highest under the refinement's errors) must succeed
-itself, and is then simulated at ``verify_samples`` errors of a fixed design
+itself, and is then simulated at up to ``verify_samples`` errors of a fixed design
 (:mod:`rgmcad.learning.errors`, the same for every candidate): Gaussian placement errors of
 standard deviation ``verify_noise``, copies outside the design space clipped onto it; or,
 with ``error_radius`` > 0, the errors of global robustness, kept in the design space with
-their importance weights. Invalid copies are left out. The candidate with the highest
-success rate among its valid copies (per radius, then averaged over radii, for ball errors)
-wins; ties go to the earlier candidate, so the optimum first.
+their importance weights. Invalid copies are left out. The candidates race: all meet the
+first 32 errors, then twice as many, and so on up to ``verify_samples``; after each stage
+a candidate whose success rate is significantly below the leader's (a paired test on the
+common errors) is dropped, so clear losers cost little and close ones get the errors it
+takes to order them. Of the candidates never dropped, the one with the highest success
+rate among its valid copies (per radius, then averaged over radii, for ball errors) wins;
+ties go to the earlier candidate, so the optimum first.
 
 Start layouts (the user's own, ``starts``) that succeeded in their own simulation are always
 candidates, right after the optimum: the layout returned is then at least as good as the
@@ -179,9 +183,9 @@ def verify_layout(
     design = design_from_settings(d, settings, settings.verify_samples, settings.verify_noise)
     chosen, tested = candidates[0], []
     if len(candidates) > 1:
-        tested, n_tested = _scored(candidates, design, simulate, validity)
+        tested, n_tested, best = _raced(candidates, design, simulate, validity)
         n_sims += n_tested
-        chosen = tested[max(range(len(tested)), key=lambda k: (tested[k].success_rate, -k))]
+        chosen = tested[best]
     if not _centring_wanted(settings, exploration_successes):
         return Verification(chosen, True, optimum, tuple(tested), n_sims)
     if rng is None:
@@ -201,36 +205,69 @@ def verify_layout(
     # robust below its start (docs/decisions.md, "Design centring")
     check = design_from_settings(d, settings, settings.centering_check_samples,
                                  settings.verify_noise)
-    before, centre = _scored([Candidate(chosen.x, chosen.source, chosen.outcome),
-                              Candidate(centring.x, chosen.source, "success", centered=True)],
-                             check, simulate, validity)[0]
+    before, centre = _raced([Candidate(chosen.x, chosen.source, chosen.outcome),
+                             Candidate(centring.x, chosen.source, "success", centered=True)],
+                            check, simulate, validity, race=False)[0]
     n_sims += before.n_valid + centre.n_valid
     winner = centre if centre.success_rate > before.success_rate else chosen
     return Verification(winner, True, optimum, tuple(tested), n_sims, centring, (before, centre),
                         n_sims - before_centring)
 
 
-def _scored(candidates, design, simulate, validity) -> tuple[list[Candidate], int]:
-    """Each candidate with its success rate under the design's errors (common to all), and
-    the simulations that took."""
+# The final choice doubles the errors every candidate still in it meets (from 32 up to
+# ``verify_samples``) and, after each stage, drops one whose paired deficit to the leader is
+# over _DROP_Z standard errors (6e-3 one-sided per look: dropping one as good as the leader
+# costs nothing, and one truly 0.1 better is 3.5 standard errors from being dropped at the
+# first 32 errors); one with fewer than _DROP_MIN_VALID valid copies, or a leader with
+# fewer, is kept (the standard error means little there). See docs/decisions.md, "A final
+# choice that races".
+_FIRST_ERRORS, _DROP_Z, _DROP_MIN_VALID = 32, 2.5, 16
+
+
+def _raced(candidates, design, simulate, validity, race: bool = True
+           ) -> tuple[list[Candidate], int, int]:
+    """Each candidate with its success rate under the design's errors (common to all), raced
+    as described above (``race=False``: all of them at every error, in one batch); also the
+    simulations that took and the index of the candidate chosen: the highest rate among
+    those never dropped, ties to the earlier one."""
+    design = design.interleaved()
+    n_total, k = len(design.offsets), len(candidates)
     errors = [design.at(c.x) for c in candidates]
-    # Gaussian copies outside the design space are clipped onto it; ball copies are kept
-    # inside by design.at (raw weight 0 for the few it cannot)
-    P = np.vstack([np.clip(c.x + offsets, 0.0, 1.0) for c, (offsets, _) in
-                   zip(candidates, errors, strict=True)])
-    raw = np.concatenate([r for _, r in errors])
-    ok = raw > 0
-    ok[ok] = np.asarray(validity(P[ok]), dtype=bool)  # invalid copies are left out
-    results = iter(simulate(P[ok]))
-    tested = []
-    for c, block_ok, block_raw in zip(candidates, np.split(ok, len(candidates)),
-                                      np.split(raw, len(candidates)), strict=True):
-        wins = np.zeros(len(block_ok))
-        wins[block_ok] = [next(results).success for _ in range(int(block_ok.sum()))]
-        rate = float(design.normalized(block_raw * block_ok) @ wins)
-        tested.append(Candidate(c.x, c.source, c.outcome, rate, int(block_ok.sum()),
-                                c.centered))
-    return tested, int(ok.sum())
+    wins, valid = np.zeros((k, n_total)), np.zeros((k, n_total), dtype=bool)
+    rates, alive, done, n_sims = np.full(k, np.nan), list(range(k)), 0, 0
+    while done < n_total:
+        until = min(max(_FIRST_ERRORS, 2 * done), n_total) if race else n_total
+        rows = slice(done, until)
+        P = np.vstack([np.clip(candidates[c].x + errors[c][0][rows], 0.0, 1.0) for c in alive])
+        ok = np.concatenate([errors[c][1][rows] > 0 for c in alive])
+        # invalid copies are left out; copies past both faces of the cube weigh 0
+        ok[ok] = np.asarray(validity(P[ok]), dtype=bool)
+        results = iter(simulate(P[ok]))
+        n_sims += int(ok.sum())
+        for c, block in zip(alive, np.split(ok, len(alive)), strict=True):
+            valid[c, rows] = block
+            wins[c, rows][block] = [next(results).success for _ in range(int(block.sum()))]
+        done = until
+        weights = {c: design.normalized(errors[c][1] * valid[c]) for c in alive}
+        for c in alive:
+            rates[c] = float(weights[c] @ wins[c])
+        leader = max(alive, key=lambda c: (rates[c], -c))
+        if done < n_total and valid[leader].sum() >= _DROP_MIN_VALID:
+            lead = weights[leader] * (wins[leader] - rates[leader])
+            alive = [c for c in alive if c == leader or valid[c].sum() < _DROP_MIN_VALID
+                     or not _significantly_below(rates[leader] - rates[c], lead,
+                                                 weights[c] * (wins[c] - rates[c]), done)]
+    tested = [Candidate(c.x, c.source, c.outcome, float(rates[i]), int(valid[i].sum()),
+                        c.centered) for i, c in enumerate(candidates)]
+    return tested, n_sims, max(alive, key=lambda c: (rates[c], -c))
+
+
+def _significantly_below(deficit: float, lead: np.ndarray, other: np.ndarray, n: int) -> bool:
+    """Whether a deficit of weighted success rates on common errors exceeds _DROP_Z standard
+    errors; ``lead`` and ``other`` are each estimate's per-error terms ``w_i (s_i - rate)``,
+    whose paired difference gives the variance (linearised, corrected for ``n`` errors)."""
+    variance = float(((lead - other) ** 2).sum()) * n / max(n - 1, 1)
+    return deficit > _DROP_Z * np.sqrt(variance)
 
 
 def _centring_wanted(settings: LearningSettings, exploration_successes: int | None) -> bool:
