@@ -49,7 +49,7 @@ TINY = LearningSettings(
     n_initial=40, n_successes=8, exploration_max_iter=8, active_batch=5, active_max_iter=1,
     svm_C_grid=(1.0, 10.0, 100.0), svm_gamma_grid=(1.0, 10.0), svm_class_weights=(None,),
     mi_null_permutations=2, placement_samples=4, optimizer_max_eval=40,
-    centering_simulations=0,
+    centering_simulations=0, verify_samples=64,  # a race of two stages, 32 and 64 errors
 )
 
 

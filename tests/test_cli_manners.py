@@ -243,15 +243,11 @@ def test_evaluate_without_out_writes_its_plot_beside_the_layout_or_here(tmp_path
 @pytest.fixture
 def tiny_budget(monkeypatch):
     """``--budget small`` on settings small enough for the fast suite."""
-    from rgmcad.learning import LearningSettings, settings
+    from rgmcad.learning import settings
+    from tests._support import TINY
 
-    tiny = LearningSettings(
-        n_initial=40, n_successes=8, exploration_max_iter=8, active_batch=5, active_max_iter=1,
-        svm_C_grid=(1.0, 10.0, 100.0), svm_gamma_grid=(1.0, 10.0), svm_class_weights=(None,),
-        mi_null_permutations=2, placement_samples=4, optimizer_max_eval=40,
-        centering_simulations=0)
     real = settings.budget
-    monkeypatch.setattr(settings, "budget", lambda name: tiny if name == "small" else real(name))
+    monkeypatch.setattr(settings, "budget", lambda name: TINY if name == "small" else real(name))
 
 
 def test_optimize_progress_summary_store_and_next_step_agree(tmp_path, monkeypatch, capsys,

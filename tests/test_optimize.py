@@ -54,6 +54,11 @@ def test_the_pipeline_runs_on_simple_and_writes_its_outputs(reference):
     assert all(down >= 0 and up >= 0 for down, up in layout["tolerances"].values())
     assert set(layout["poses"]) == {"track"} and "roll" in layout["poses"]["track"]
     assert summary["weakest_event"] in summary["event_probabilities"]
+    # the report says how the final choice raced, with each candidate's valid copies
+    report = (run / "report.md").read_text()
+    assert "then twice as many and so on up to 64" in report
+    rows = [line for line in report.splitlines() if line.startswith("| simulated sample #")]
+    assert rows and all(0 < int(row.split("|")[3]) <= 64 for row in rows)
     # the layout file works as --layout FILE, and the chosen layout was verified
     code, sim = run_cli(["simulate", SIMPLE, "--layout", str(run / "layout.json"), "--json"])
     assert code == 0 and np.allclose(sim["vector"], layout["vector"])
@@ -194,8 +199,9 @@ def test_run_store_refuses_other_settings_and_a_second_user(tmp_path):
 
 def test_a_run_directory_made_before_a_setting_was_added_still_resumes(tmp_path):
     # what older rgmcad wrote had no `unmodelled_at`; its value then was "start"
-    older = run_identity("s", "0" * 64, 0, TINY)
+    older = run_identity("s", "0" * 64, 0, TINY.replace(unmodelled_at="start"))
     assert "unmodelled_at" not in older["settings"]
+    assert run_identity("s", "0" * 64, 0, TINY)["settings"]["unmodelled_at"] == "median"
     (tmp_path / "settings.json").write_text(json.dumps(older))
     RunStore(tmp_path, run_identity("s", "0" * 64, 0, TINY.replace(unmodelled_at="start"))).close()
     with pytest.raises(RunDirectoryError, match="unmodelled_at: run has nothing, command asks "
