@@ -239,7 +239,7 @@ class LearningSettings:
         on (the refinement cannot move it): "median", at the median of the run's simulated
         successes along it, each kept only if the layout stays valid; "start", where its
         start sample had it (the paper: a parameter can then stay at a bad end of its range
-        by chance). See docs/decisions.md, "Held-out scenarios, second look".
+        by chance). See docs/decisions.md, "The pair by default".
     verify_candidates : int, default 4
         Added by rgmcad: layouts compared by simulation at the end (the optimum if it
         succeeds, then the simulated global successes the model rates highest); see
@@ -252,8 +252,8 @@ class LearningSettings:
         the best rated simulated success). Why: the refinement maximises the model's
         prediction, which can be confidently wrong; choosing by simulation returns more
         robust layouts, and telling candidates 0.1 apart in rho_g takes a few hundred
-        errors. See docs/decisions.md, "Final choice by simulation" and "A final choice
-        that races".
+        errors. See docs/decisions.md, "Final choice by simulation" and "The pair by
+        default".
     verify_noise : float, default 0.05
         With ``error_radius`` 0: standard deviation (normalised units) of those placement
         errors, the same as ``placement_noise`` by default.

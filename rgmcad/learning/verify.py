@@ -219,8 +219,8 @@ def verify_layout(
 # over _DROP_Z standard errors (6e-3 one-sided per look: dropping one as good as the leader
 # costs nothing, and one truly 0.1 better is 3.5 standard errors from being dropped at the
 # first 32 errors); one with fewer than _DROP_MIN_VALID valid copies, or a leader with
-# fewer, is kept (the standard error means little there). See docs/decisions.md, "A final
-# choice that races".
+# fewer, is kept (the standard error means little there). See docs/decisions.md, "The pair
+# by default".
 _FIRST_ERRORS, _DROP_Z, _DROP_MIN_VALID = 32, 2.5, 16
 
 
