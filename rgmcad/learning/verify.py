@@ -200,9 +200,9 @@ def verify_layout(
     if not moved or not simulate(centring.x[None, :])[0].success:
         return Verification(chosen, True, optimum, tuple(tested), n_sims, centring,
                             n_centering_simulations=n_sims - before_centring)
-    # the centre against the layout it came from, at more errors than the choice among
-    # candidates used (common to both): on domino_arc 32 errors ranked a centre 0.16 more
-    # robust below its start (docs/decisions.md, "Design centring")
+    # the centre against the layout it came from, at centering_check_samples errors common
+    # to both, all of them (no race between two): on domino_arc 32 errors ranked a centre
+    # 0.16 more robust below its start (docs/decisions.md, "Design centring")
     check = design_from_settings(d, settings, settings.centering_check_samples,
                                  settings.verify_noise)
     before, centre = _raced([Candidate(chosen.x, chosen.source, chosen.outcome),
