@@ -42,7 +42,7 @@ from .factorize import SPDModel
 from .oracles import Label
 from .settings import LearningSettings
 
-__all__ = ["Candidate", "Verification", "verify_layout"]
+__all__ = ["Candidate", "Verification", "race_stages", "verify_layout"]
 
 
 def outcome(label: Label) -> str:
@@ -103,6 +103,9 @@ class Verification:
         its own simulation).
     n_centering_simulations : int
         Of ``n_simulations``, those of the centring and its check.
+    race_stages : tuple of int
+        The errors met by the end of each stage of the race (:func:`race_stages`; empty
+        when fewer than two candidates raced).
     """
 
     chosen: Candidate
@@ -113,6 +116,7 @@ class Verification:
     centering: Centering | None = None
     centering_check: tuple[Candidate, Candidate] | None = None
     n_centering_simulations: int = 0
+    race_stages: tuple[int, ...] = ()
 
 
 def verify_layout(
@@ -181,13 +185,13 @@ def verify_layout(
         return Verification(candidates[0], True, optimum, (), n_sims)
 
     design = design_from_settings(d, settings, settings.verify_samples, settings.verify_noise)
-    chosen, tested = candidates[0], []
+    chosen, tested, stages = candidates[0], [], ()
     if len(candidates) > 1:
         tested, n_tested, best = _raced(candidates, design, simulate, validity)
         n_sims += n_tested
-        chosen = tested[best]
+        chosen, stages = tested[best], tuple(race_stages(len(design.offsets)))
     if not _centring_wanted(settings, exploration_successes):
-        return Verification(chosen, True, optimum, tuple(tested), n_sims)
+        return Verification(chosen, True, optimum, tuple(tested), n_sims, race_stages=stages)
     if rng is None:
         raise ValueError("verify_layout: centring needs rng")
     centring = center_layout(chosen.x, simulate, validity, rng,
@@ -199,7 +203,8 @@ def verify_layout(
     n_sims += centring.n_simulations + moved  # and the centre's own simulation
     if not moved or not simulate(centring.x[None, :])[0].success:
         return Verification(chosen, True, optimum, tuple(tested), n_sims, centring,
-                            n_centering_simulations=n_sims - before_centring)
+                            n_centering_simulations=n_sims - before_centring,
+                            race_stages=stages)
     # the centre against the layout it came from, at centering_check_samples errors common
     # to both, all of them (no race between two): on domino_arc 32 errors ranked a centre
     # 0.16 more robust below its start (docs/decisions.md, "Design centring")
@@ -211,7 +216,7 @@ def verify_layout(
     n_sims += before.n_valid + centre.n_valid
     winner = centre if centre.success_rate > before.success_rate else chosen
     return Verification(winner, True, optimum, tuple(tested), n_sims, centring, (before, centre),
-                        n_sims - before_centring)
+                        n_sims - before_centring, stages)
 
 
 # The final choice doubles the errors every candidate still in it meets (from 32 up to
@@ -222,6 +227,15 @@ def verify_layout(
 # fewer, is kept (the standard error means little there). See docs/decisions.md, "The pair
 # by default".
 _FIRST_ERRORS, _DROP_Z, _DROP_MIN_VALID = 32, 2.5, 16
+
+
+def race_stages(n_errors: int) -> list[int]:
+    """The errors every candidate still racing has met by the end of each stage, for a
+    design of ``n_errors``: 32, then twice as many each stage, up to ``n_errors``."""
+    stages = [min(_FIRST_ERRORS, n_errors)]
+    while stages[-1] < n_errors:
+        stages.append(min(2 * stages[-1], n_errors))
+    return stages
 
 
 def _raced(candidates, design, simulate, validity, race: bool = True
@@ -235,8 +249,7 @@ def _raced(candidates, design, simulate, validity, race: bool = True
     errors = [design.at(c.x) for c in candidates]
     wins, valid = np.zeros((k, n_total)), np.zeros((k, n_total), dtype=bool)
     rates, alive, done, n_sims = np.full(k, np.nan), list(range(k)), 0, 0
-    while done < n_total:
-        until = min(max(_FIRST_ERRORS, 2 * done), n_total) if race else n_total
+    for until in race_stages(n_total) if race else [n_total]:
         rows = slice(done, until)
         P = np.vstack([np.clip(candidates[c].x + errors[c][0][rows], 0.0, 1.0) for c in alive])
         ok = np.concatenate([errors[c][1][rows] > 0 for c in alive])

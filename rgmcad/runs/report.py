@@ -77,7 +77,7 @@ def report_markdown(scenario, s: dict, low, high) -> str:
                      "normalised design space, as rho_g weighs them)" if (radius := s.get(
                          "error_radius")) else "placement errors (Gaussian, standard "
                      f"deviation {s['verify_noise']:g} of each range)")
-                  + _race_words(s.get("verify_samples")), "",
+                  + _race_words(s.get("race_stages") or []), "",
                   "| candidate | success under errors | valid copies |",
                   "|---|---|---|"]
         for c in s["verification"]:
@@ -87,14 +87,13 @@ def report_markdown(scenario, s: dict, low, high) -> str:
     return "\n".join(lines)
 
 
-def _race_words(most: int | None) -> str:
-    if not most or most <= 32:
+def _race_words(stages: list[int]) -> str:
+    if len(stages) < 2:
         return " and the one that succeeded most often was kept."
-    most = 1 << (most - 1).bit_length()  # rounded up to a power of two, as the design is
-    return (f": all at the first 32 errors, then twice as many and so on up to {most}, a "
-            "candidate significantly below the leader dropped after each stage (it has fewer "
-            "valid copies below); of those never dropped, the one that succeeded most often "
-            "was kept.")
+    return (f": all at the first {stages[0]} errors, then twice as many and so on up to "
+            f"{stages[-1]}, a candidate significantly below the leader dropped after each "
+            "stage (it has fewer valid copies below); of those never dropped, the one that "
+            "succeeded most often was kept.")
 
 
 def _exploration_lines(e) -> list[str]:

@@ -112,7 +112,7 @@ def choose_layout(recorded, result, starts: dict[str, np.ndarray] | None = None,
             "by_stage": {"verification": v.n_simulations - v.n_centering_simulations,
                          **({"centering": v.n_centering_simulations}
                             if v.n_centering_simulations else {})},
-            "centering": centering,
+            "centering": centering, "race_stages": list(v.race_stages),
             "candidates": [{"source": t.source, "vector": [float(u) for u in t.x],
                             "success_rate": t.success_rate, "valid_copies": t.n_valid}
                            for t in v.candidates]}
