@@ -159,6 +159,60 @@ def test_kill_9_of_optimize_then_the_same_command_resumes_to_the_same_result(
             killed.wait()
 
 
+def _ctrl_c_at(command: list[str], journal: Path, lines: int) -> tuple[float, str, dict]:
+    """Run ``command`` in its own session (as a terminal's foreground job), press Ctrl-C
+    (SIGINT to the whole process group) once the journal holds ``lines`` lines: (seconds to
+    exit, stderr, {pid: start} of its workers then)."""
+    job = subprocess.Popen(command, cwd=ROOT, stdout=subprocess.DEVNULL,
+                           stderr=subprocess.PIPE, text=True, start_new_session=True)
+    workers: dict[int, str] = {}
+    try:
+        deadline = time.monotonic() + 120
+        while not (journal.exists() and journal.read_bytes().count(b"\n") >= lines):
+            assert job.poll() is None and time.monotonic() < deadline, "not interrupted in time"
+            time.sleep(0.01)
+        workers = _children(job.pid)
+        pressed = time.monotonic()
+        os.killpg(job.pid, signal.SIGINT)
+        try:
+            _, err = job.communicate(timeout=30)
+        except subprocess.TimeoutExpired:
+            pytest.fail("rgmcad still running 30 s after Ctrl-C")
+        return time.monotonic() - pressed, err, workers
+    finally:
+        with contextlib.suppress(ProcessLookupError):
+            os.killpg(job.pid, signal.SIGKILL)  # whatever happened, leave nothing running
+        job.wait()
+
+
+@pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="reads processes in /proc")
+def test_ctrl_c_ends_optimize_at_once_in_one_line_and_the_same_command_resumes(small_run,
+                                                                               tmp_path):
+    # causality_switch's simulations take about a second, so a worker is mid-simulation
+    # when the key is pressed (workers that took the signal themselves once left the pool's
+    # lock held and the command hung, or died and printed a broken pool's traceback; a
+    # command that waited for its running simulations took 7-20 s to stop)
+    run = tmp_path / "switch"
+    switch = [sys.executable, "-m", "rgmcad.cli", "optimize", "causality_switch", "--budget",
+              "small", "--workers", "2", "--run", str(run), "-q"]
+    for lines in (6, 18):  # two presses, the same command started again after the first
+        seconds, err, workers = _ctrl_c_at(switch, run / SIMULATIONS, lines)
+        assert err == "rgmcad: interrupted\n" and seconds < 5, (seconds, err[-2000:])
+        assert len(workers) == 2 and not [p for p, s in workers.items() if _running(p, s)]
+    # and an interrupted run continues to the result it would have had
+    _, reference = small_run
+    run = tmp_path / "simple"
+    seconds, err, _ = _ctrl_c_at(_optimize_command(run, ("-q",)), run / SIMULATIONS, 10)
+    assert err == "rgmcad: interrupted\n" and seconds < 5
+    resumed = subprocess.run(_optimize_command(run), cwd=ROOT, capture_output=True, text=True,
+                             timeout=300)
+    assert resumed.returncode == 0, resumed.stderr[-2000:]
+    summary = json.loads(resumed.stdout)
+    assert (summary["vector"], summary["simulations"]) == (reference["vector"],
+                                                           reference["simulations"])
+    assert summary["replayed"] >= 10
+
+
 @pytest.mark.skipif(not Path("/proc/self/fd").exists(), reason="reads /proc/self/fd")
 def test_pool_workers_keep_no_file_of_their_parent(tmp_path):
     with open(tmp_path / "journal", "ab") as f:

@@ -175,6 +175,10 @@ def _start_worker(parent: int, threads: int, initializer: Callable | None,
     goes), then the caller's initializer, whose result is the worker's context."""
     global _CONTEXT
     _tie_to_parent(os.getppid() if parent < 0 else parent)
+    # Ctrl-C in a terminal signals the whole process group: a worker interrupted inside the
+    # pool's queue can leave its lock held (the parent then waits forever) or die mid-task
+    # (a broken pool, a traceback); the parent alone handles it and ends the workers
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
     from threadpoolctl import threadpool_limits
 
     threadpool_limits(limits=threads)
@@ -219,6 +223,7 @@ class PoolExecutor:
                                          initargs=(parent, threads, initializer,
                                                    tuple(initargs)))
         self._pool.submit(int)  # starts every worker now (see above)
+        self._futures: list = []
 
     def map(self, fn, items):
         return self._submit(_apply_batch, fn, items)
@@ -231,6 +236,7 @@ class PoolExecutor:
         size = max(1, min(self.max_batch, -(-len(items) // (8 * self.workers))))
         futures = [self._pool.submit(apply, fn, items[i:i + size])
                    for i in range(0, len(items), size)]
+        self._futures = [f for f in self._futures if not f.done()] + futures
         return self._results(futures)
 
     @staticmethod
@@ -243,6 +249,11 @@ class PoolExecutor:
                 f.cancel()
 
     def close(self) -> None:
+        """Shut the pool down; tasks still running (the caller gave up on them: an error,
+        Ctrl-C) are not waited for, their workers are ended."""
+        if any(not f.done() for f in self._futures):
+            for process in list(getattr(self._pool, "_processes", {}).values()):
+                process.terminate()
         self._pool.shutdown(wait=True, cancel_futures=True)
 
     def __enter__(self):
