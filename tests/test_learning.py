@@ -694,12 +694,41 @@ def test_final_choice_races_the_candidates_dropping_clear_losers_early():
     assert raced.chosen.success_rate == max(c.success_rate for c in central)
     assert max(c.success_rate for c in edge) < min(c.success_rate for c in central) - 0.2
     assert raced.n_simulations == 1 + sum(c.n_valid for c in raced.candidates) < 700
+    assert raced.race_stages == (32, 64, 128, 256)  # every copy valid: no errors past 256
 
     # candidates as good as each other are never dropped: four copies of the centre
     same = np.array([[0.5, 0.5 + k * 1e-4] for k in range(1, 4)])
     tie = verify_layout(disc_model(), np.array([0.5, 0.5]), same, oracle.simulate(same),
                         oracle.simulate, oracle.validity, settings)
     assert len({c.n_valid for c in tie.candidates}) == 1 and tie.chosen.source == "optimum"
+
+
+@pytest.mark.parametrize(("threshold", "stages"), [(0.2, (32, 64, 128, 256, 512)),
+                                                  (0.85, (32, 64, 128, 256, 512, 1024))])
+def test_final_choice_meets_more_errors_while_most_copies_are_invalid(threshold, stages):
+    # obstacles in thin bands across the design space make 44 % (threshold 0.2) or 18 %
+    # (0.85) of every candidate's perturbed copies invalid-free; the race goes on past
+    # verify_samples = 256 errors until each candidate still racing has 128 valid copies,
+    # and never past four times as many
+    oracle = disc_oracle(d=2)
+
+    def validity(P):
+        return oracle.validity(P) & (np.sin(60.0 * P[:, 0]) > threshold)
+
+    X = np.array([[0.52, 0.5], [0.5, 0.52]])
+    settings = FAST.replace(verify_samples=256, error_radius=0.5, verify_candidates=3)
+    raced = verify_layout(disc_model(), np.array([0.5, 0.5]), X, oracle.simulate(X),
+                          oracle.simulate, validity, settings)
+    assert raced.race_stages == stages
+    # 44 %: about 113 valid copies each at 256 errors, 226 at 512; 18 %: about 92 at 512
+    share = np.mean([c.n_valid for c in raced.candidates]) / stages[-1]
+    assert share * stages[-2] < 128 <= min(c.n_valid for c in raced.candidates)
+    # the errors appended are of the same law: the rates stay those of the full disc test
+    # (about 0.84 at the centre, all copies valid)
+    plain = verify_layout(disc_model(), np.array([0.5, 0.5]), X, oracle.simulate(X),
+                          oracle.simulate, oracle.validity, settings)
+    for banded, whole in zip(raced.candidates, plain.candidates, strict=True):
+        assert abs(banded.success_rate - whole.success_rate) < 0.08
 
 
 # --- exploration step control ---------------------------------------------------------------

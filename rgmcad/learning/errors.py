@@ -77,6 +77,15 @@ class ErrorDesign:
         order = np.lexsort((self.levels, position))
         return ErrorDesign(self.offsets[order], self.levels[order])
 
+    def head(self, k: int) -> ErrorDesign:
+        """The first ``k`` errors."""
+        return ErrorDesign(self.offsets[:k], None if self.levels is None else self.levels[:k])
+
+    def then(self, other: ErrorDesign) -> ErrorDesign:
+        """This design's errors followed by ``other``'s (of the same kind and dimension)."""
+        levels = None if self.levels is None else np.concatenate([self.levels, other.levels])
+        return ErrorDesign(np.vstack([self.offsets, other.offsets]), levels)
+
     def normalized(self, raw: np.ndarray) -> np.ndarray:
         """(k,) weights summing to 1 from raw ones (0 = left out): per radius level
         normalised, then the levels with any weight averaged (all 0 when none has)."""
@@ -98,31 +107,38 @@ def mirrored_offsets(x: np.ndarray, offsets: np.ndarray) -> np.ndarray:
     return np.where(out, -offsets, offsets)
 
 
-def _sobol_midpoints(dim: int, m: int) -> np.ndarray:
+def _sobol_midpoints(dim: int, m: int, scramble: int | None = None) -> np.ndarray:
     """The first ``m`` unscrambled Sobol points in ``dim`` dimensions, moved to the middle of
-    their strata (so none is 0, whose normal quantile is infinite)."""
-    return qmc.Sobol(dim, scramble=False).random(m) + 0.5 / m
+    their strata (so none is 0, whose normal quantile is infinite); with ``scramble``, the
+    points of the Sobol sequence scrambled with that seed instead (a design independent of
+    the unscrambled one, as deterministic), kept off 0 and 1."""
+    if scramble is None:
+        return qmc.Sobol(dim, scramble=False).random(m) + 0.5 / m
+    return np.clip(qmc.Sobol(dim, scramble=True, seed=scramble).random(m), 0.25 / m, 1 - 0.25 / m)
 
 
 def _power_of_two(n: int) -> int:
     return 2 ** int(np.ceil(np.log2(max(n, 2))))
 
 
-def gaussian_errors(d: int, sigma: float, n: int) -> ErrorDesign:
+def gaussian_errors(d: int, sigma: float, n: int, scramble: int | None = None) -> ErrorDesign:
     """Gaussian errors of standard deviation ``sigma``: ``n`` rounded up to a power of two
     points of an unscrambled Sobol sequence, moved to the midpoints of their strata, through
     the normal quantile; each column is then a permutation of the stratified normal
-    quantiles, rescaled to mean 0 and standard deviation exactly ``sigma``."""
-    z = ndtri(_sobol_midpoints(d, _power_of_two(n)))
+    quantiles, rescaled to mean 0 and standard deviation exactly ``sigma``. ``scramble``: see
+    :func:`_sobol_midpoints`."""
+    z = ndtri(_sobol_midpoints(d, _power_of_two(n), scramble))
     return ErrorDesign(sigma * z / z.std(axis=0))
 
 
-def ball_errors(d: int, radius: float, n: int, levels: int = 8) -> ErrorDesign:
+def ball_errors(d: int, radius: float, n: int, levels: int = 8,
+                scramble: int | None = None) -> ErrorDesign:
     """The errors of global robustness up to ``radius`` (see the module docstring):
     ``n`` rounded up to a power of two offsets, ``levels`` radii ``radius * (l + 1/2) /
-    levels``, each offset uniform in the ball of its level's radius."""
+    levels``, each offset uniform in the ball of its level's radius. ``scramble``: see
+    :func:`_sobol_midpoints`."""
     m = _power_of_two(max(n, levels))
-    u = _sobol_midpoints(d + 1, m)
+    u = _sobol_midpoints(d + 1, m, scramble)
     directions = ndtri(u[:, 1:])
     directions /= np.linalg.norm(directions, axis=1, keepdims=True)
     # consecutive blocks of Sobol points, each well spread (every 2^k-th point, as i % levels
@@ -132,14 +148,16 @@ def ball_errors(d: int, radius: float, n: int, levels: int = 8) -> ErrorDesign:
     return ErrorDesign(directions * (eps * u[:, 0] ** (1.0 / d))[:, None], level)
 
 
-def design_from_settings(d: int, settings, n: int, sigma: float) -> ErrorDesign | None:
+def design_from_settings(d: int, settings, n: int, sigma: float,
+                         scramble: int | None = None) -> ErrorDesign | None:
     """The design the settings ask for, with ``n`` offsets: ball errors up to
     ``settings.error_radius`` when it is positive, else Gaussian errors of ``sigma`` (None
-    when ``sigma`` is 0: the point itself)."""
+    when ``sigma`` is 0: the point itself). ``scramble``: an independent design of the same
+    errors (:func:`_sobol_midpoints`)."""
     if settings.error_radius > 0:
-        return ball_errors(d, settings.error_radius, n)
+        return ball_errors(d, settings.error_radius, n, scramble=scramble)
     if sigma > 0:
-        return gaussian_errors(d, sigma, n)
+        return gaussian_errors(d, sigma, n, scramble)
     return None
 
 

@@ -10,7 +10,9 @@ itself, and is then simulated at up to ``verify_samples`` errors of a fixed desi
 standard deviation ``verify_noise``, copies outside the design space clipped onto it; or,
 with ``error_radius`` > 0, the errors of global robustness, kept in the design space with
 their importance weights. Invalid copies are left out. The candidates race: all meet the
-first 32 errors, then twice as many, and so on up to ``verify_samples``; after each stage
+first 32 errors, then twice as many, and so on up to ``verify_samples`` (and on, up to four
+times as many, while a candidate still racing has fewer than half as many valid copies:
+errors that make most copies invalid tell little); after each stage
 a candidate whose success rate is significantly below the leader's (a paired test on the
 common errors) is dropped, so clear losers cost little and close ones get the errors it
 takes to order them. Of the candidates never dropped, the one with the highest success
@@ -187,9 +189,14 @@ def verify_layout(
     design = design_from_settings(d, settings, settings.verify_samples, settings.verify_noise)
     chosen, tested, stages = candidates[0], [], ()
     if len(candidates) > 1:
-        tested, n_tested, best = _raced(candidates, design, simulate, validity)
+        n = len(design.offsets)
+        more = design_from_settings(d, settings, _MOST_ERRORS * n, settings.verify_noise,
+                                    scramble=_MORE_ERRORS_SEED)
+        tested, n_tested, best, stages = _raced(
+            candidates, design, simulate, validity,
+            more=more.interleaved().head((_MOST_ERRORS - 1) * n))
         n_sims += n_tested
-        chosen, stages = tested[best], tuple(race_stages(len(design.offsets)))
+        chosen = tested[best]
     if not _centring_wanted(settings, exploration_successes):
         return Verification(chosen, True, optimum, tuple(tested), n_sims, race_stages=stages)
     if rng is None:
@@ -227,29 +234,44 @@ def verify_layout(
 # fewer, is kept (the standard error means little there). See docs/decisions.md, "The pair
 # by default".
 _FIRST_ERRORS, _DROP_Z, _DROP_MIN_VALID = 32, 2.5, 16
+# Past ``verify_samples`` errors the race goes on, doubling up to _MOST_ERRORS times as many
+# (errors of an independent design of the same kind, so the first ``verify_samples`` are
+# those of a race that stops there), while a candidate still racing has fewer valid copies
+# than half ``verify_samples``: at d = 18 most errors give invalid layouts, and ~100 valid
+# copies could not order candidates 0.1 apart (docs/decisions.md, "Errors until enough
+# are valid").
+_MOST_ERRORS, _MORE_ERRORS_SEED = 4, 1
 
 
-def race_stages(n_errors: int) -> list[int]:
+def race_stages(n_errors: int, n_most: int | None = None) -> list[int]:
     """The errors every candidate still racing has met by the end of each stage, for a
-    design of ``n_errors``: 32, then twice as many each stage, up to ``n_errors``."""
+    design of ``n_errors``: 32, then twice as many each stage, up to ``n_errors``; then on,
+    doubling, up to ``n_most`` (the stages a race may add when copies are mostly invalid)."""
     stages = [min(_FIRST_ERRORS, n_errors)]
-    while stages[-1] < n_errors:
-        stages.append(min(2 * stages[-1], n_errors))
+    while stages[-1] < max(n_errors, n_most or 0):
+        stages.append(min(2 * stages[-1], max(n_errors, n_most or 0)))
     return stages
 
 
-def _raced(candidates, design, simulate, validity, race: bool = True
-           ) -> tuple[list[Candidate], int, int]:
+def _raced(candidates, design, simulate, validity, race: bool = True, more=None
+           ) -> tuple[list[Candidate], int, int, tuple[int, ...]]:
     """Each candidate with its success rate under the design's errors (common to all), raced
-    as described above (``race=False``: all of them at every error, in one batch); also the
-    simulations that took and the index of the candidate chosen: the highest rate among
-    those never dropped, ties to the earlier one."""
+    as described above (``race=False``: all of them at every error, in one batch; ``more``:
+    the errors appended while copies are mostly invalid); also the simulations that took,
+    the index of the candidate chosen (the highest rate among those never dropped, ties to
+    the earlier one) and the stages run (empty without a race)."""
     design = design.interleaved()
+    n_base = len(design.offsets)
+    if race and more is not None:
+        design = design.then(more)
     n_total, k = len(design.offsets), len(candidates)
     errors = [design.at(c.x) for c in candidates]
     wins, valid = np.zeros((k, n_total)), np.zeros((k, n_total), dtype=bool)
     rates, alive, done, n_sims = np.full(k, np.nan), list(range(k)), 0, 0
-    for until in race_stages(n_total) if race else [n_total]:
+    stages = race_stages(n_base, n_total) if race else [n_total]
+    for until in stages:
+        if done >= n_base and all(valid[c].sum() >= n_base / 2 for c in alive):
+            break
         rows = slice(done, until)
         P = np.vstack([np.clip(candidates[c].x + errors[c][0][rows], 0.0, 1.0) for c in alive])
         ok = np.concatenate([errors[c][1][rows] > 0 for c in alive])
@@ -272,7 +294,8 @@ def _raced(candidates, design, simulate, validity, race: bool = True
                                                  weights[c] * (wins[c] - rates[c]), done)]
     tested = [Candidate(c.x, c.source, c.outcome, float(rates[i]), int(valid[i].sum()),
                         c.centered) for i, c in enumerate(candidates)]
-    return tested, n_sims, max(alive, key=lambda c: (rates[c], -c))
+    run = tuple(s for s in stages if s <= done) if race else ()
+    return tested, n_sims, max(alive, key=lambda c: (rates[c], -c)), run
 
 
 def _significantly_below(deficit: float, lead: np.ndarray, other: np.ndarray, n: int) -> bool:

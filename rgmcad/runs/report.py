@@ -77,7 +77,7 @@ def report_markdown(scenario, s: dict, low, high) -> str:
                      "normalised design space, as rho_g weighs them)" if (radius := s.get(
                          "error_radius")) else "placement errors (Gaussian, standard "
                      f"deviation {s['verify_noise']:g} of each range)")
-                  + _race_words(s.get("race_stages") or []), "",
+                  + _race_words(s.get("race_stages") or [], s.get("verify_samples")), "",
                   "| candidate | success under errors | valid copies |",
                   "|---|---|---|"]
         for c in s["verification"]:
@@ -87,11 +87,15 @@ def report_markdown(scenario, s: dict, low, high) -> str:
     return "\n".join(lines)
 
 
-def _race_words(stages: list[int]) -> str:
+def _race_words(stages: list[int], planned: int | None) -> str:
     if len(stages) < 2:
         return " and the one that succeeded most often was kept."
+    # the design holds verify_samples rounded up to a power of two
+    end = next((n for n in stages if n >= planned), stages[-1]) if planned else stages[-1]
+    past = (f" (past {end} because a candidate still racing had fewer than {end // 2} "
+            "valid copies)" if stages[-1] > end else "")
     return (f": all at the first {stages[0]} errors, then twice as many and so on up to "
-            f"{stages[-1]}, a candidate significantly below the leader dropped after each "
+            f"{stages[-1]}{past}, a candidate significantly below the leader dropped after each "
             "stage (it has fewer valid copies below); of those never dropped, the one that "
             "succeeded most often was kept.")
 

@@ -334,7 +334,7 @@ def _write_outputs(scenario, store, recorded, result, chosen, wall_time, seed, b
         "verification": chosen["candidates"],
         "centering": chosen["centering"],
         "verify_noise": result.settings.verify_noise, "error_radius": result.settings.error_radius,
-        "race_stages": chosen["race_stages"],
+        "race_stages": chosen["race_stages"], "verify_samples": result.settings.verify_samples,
         "robustness": robustness,
         "successes": int(n_success),
         "discarded": result.n_discarded,
