@@ -245,10 +245,9 @@ class LearningSettings:
         succeeds, then the simulated global successes the model rates highest); see
         :mod:`rgmcad.learning.verify`.
     verify_samples : int, default 256
-        Errors simulated per candidate (rounded up to a power of two; those of
-        ``error_radius``, else Gaussian ones of ``verify_noise``; up to 4x as many while a
-        candidate has fewer than half as many valid copies): the candidates race from 32
-        errors, doubling, one significantly below the leader dropped after each stage;
+        Errors per candidate (a power of two; of ``error_radius``, else Gaussian of
+        ``verify_noise``; up to 4x while one has under half as many valid copies): they race
+        from 32, doubling, one significantly below the leader dropped after each stage;
         0 keeps the paper's choice (the optimum if its one simulation succeeds, else
         the best rated simulated success). Why: the refinement maximises the model's
         prediction, which can be confidently wrong; choosing by simulation returns more
