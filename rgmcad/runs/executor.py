@@ -252,7 +252,7 @@ class PoolExecutor:
         """Shut the pool down; tasks still running (the caller gave up on them: an error,
         Ctrl-C) are not waited for, their workers are ended."""
         if any(not f.done() for f in self._futures):
-            for process in list(getattr(self._pool, "_processes", {}).values()):
+            for process in list((getattr(self._pool, "_processes", None) or {}).values()):
                 process.terminate()
         self._pool.shutdown(wait=True, cancel_futures=True)
 
