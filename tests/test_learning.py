@@ -706,8 +706,8 @@ def test_final_choice_races_the_candidates_dropping_clear_losers_early():
 @pytest.mark.parametrize(("threshold", "stages"), [(0.2, (32, 64, 128, 256, 512)),
                                                   (0.85, (32, 64, 128, 256, 512, 1024))])
 def test_final_choice_meets_more_errors_while_most_copies_are_invalid(threshold, stages):
-    # obstacles in thin bands across the design space make 44 % (threshold 0.2) or 18 %
-    # (0.85) of every candidate's perturbed copies invalid-free; the race goes on past
+    # obstacles in thin bands across the design space leave 44 % (threshold 0.2) or 18 %
+    # (0.85) of every candidate's perturbed copies valid; the race goes on past
     # verify_samples = 256 errors until each candidate still racing has 128 valid copies,
     # and never past four times as many
     oracle = disc_oracle(d=2)

@@ -247,9 +247,10 @@ def race_stages(n_errors: int, n_most: int | None = None) -> list[int]:
     """The errors every candidate still racing has met by the end of each stage, for a
     design of ``n_errors``: 32, then twice as many each stage, up to ``n_errors``; then on,
     doubling, up to ``n_most`` (the stages a race may add when copies are mostly invalid)."""
+    end = max(n_errors, n_most or 0)
     stages = [min(_FIRST_ERRORS, n_errors)]
-    while stages[-1] < max(n_errors, n_most or 0):
-        stages.append(min(2 * stages[-1], max(n_errors, n_most or 0)))
+    while stages[-1] < end:
+        stages.append(min(2 * stages[-1], end))
     return stages
 
 
@@ -262,7 +263,7 @@ def _raced(candidates, design, simulate, validity, race: bool = True, more=None
     the earlier one) and the stages run (empty without a race)."""
     design = design.interleaved()
     n_base = len(design.offsets)
-    if race and more is not None:
+    if more is not None:
         design = design.then(more)
     n_total, k = len(design.offsets), len(candidates)
     errors = [design.at(c.x) for c in candidates]
