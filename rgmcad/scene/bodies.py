@@ -12,7 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from rgmcad.geometry import transform_points
+from rgmcad.geometry import matmul, norm, transform_points
 from rgmcad.parts.build import Store, load_part
 from rgmcad.parts.family import MAIN
 from rgmcad.parts.store import DEFAULT_BUILD_DIR, BuiltBody, BuiltPart, as_store
@@ -117,7 +117,7 @@ def make_scene(scenario: Scenario, values, parts: Mapping[str, BuiltPart]) -> Sc
             hinges.append(Hinge(
                 moving=_sub(obj.name, joint.moving), fixed=_sub(obj.name, joint.fixed),
                 point=transform_points(pose, np.asarray([joint.point], float))[0],
-                axis=pose[:3, :3] @ np.asarray(joint.axis, float),
+                axis=matmul(pose[:3, :3], joint.axis),
             ))
     welds = _weld_groups(scenario)
     for members in fixed_parts:  # into the weld group of its main body, or a group of its own
@@ -132,7 +132,7 @@ def make_scene(scenario: Scenario, values, parts: Mapping[str, BuiltPart]) -> Sc
             axis = np.asarray(joint.axis, float)
             hinges.append(Hinge(moving, fixed,
                                 transform_points(pose, np.asarray([joint.point], float))[0],
-                                pose[:3, :3] @ (axis / np.linalg.norm(axis))))
+                                matmul(pose[:3, :3], axis / norm(axis))))
     return Scene(bodies, tuple(hinges), welds, np.asarray(values, float),
                  scene_ropes(scenario, poses))
 

@@ -12,7 +12,7 @@ from collections.abc import Mapping
 
 import numpy as np
 
-from rgmcad.geometry import POSE_KEYS, pose_matrices
+from rgmcad.geometry import POSE_KEYS, matmul, pose_matrices
 from rgmcad.scene.model import Scenario
 
 
@@ -79,7 +79,8 @@ def world_poses_many(scenario: Scenario, values) -> dict[str, np.ndarray]:
     def resolve(name):
         if name not in world:
             parent = scenario.objects[name].parent
-            world[name] = local[row[name]] if parent is None else resolve(parent) @ local[row[name]]
+            world[name] = (local[row[name]] if parent is None
+                           else matmul(resolve(parent), local[row[name]]))
         return world[name]
 
     for name in scenario.objects:

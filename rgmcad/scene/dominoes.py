@@ -13,12 +13,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from rgmcad.geometry import rotation_2d
+from rgmcad.geometry import atan2_degrees, exp, matmul, rotation_2d, sin_cos_degrees
 
 
 def _place(points: np.ndarray, headings: np.ndarray, origin, angle_deg: float) -> np.ndarray:
     """Rotate (n, 2) points and headings by ``angle_deg`` and move them to ``origin``."""
-    xy = points @ rotation_2d(angle_deg).T + np.asarray(origin, float)
+    xy = matmul(points, rotation_2d(angle_deg).T) + np.asarray(origin, float)
     return np.column_stack([xy, headings + angle_deg])
 
 
@@ -34,9 +34,10 @@ def arc(count: int, radius: float, start: float, end: float, center=(0.0, 0.0)) 
     Each domino faces along the arc (heading = polar angle + 90), so the run falls in the
     direction of increasing angle when ``end > start``.
     """
-    polar = np.radians(np.linspace(start, end, count))
-    pts = radius * np.column_stack([np.cos(polar), np.sin(polar)])
-    headings = np.degrees(polar) + (90.0 if end >= start else -90.0)
+    polar = np.linspace(start, end, count)
+    sin, cos = sin_cos_degrees(polar)
+    pts = radius * np.column_stack([cos, sin])
+    headings = polar + (90.0 if end >= start else -90.0)
     return _place(pts, headings, center, 0.0)
 
 
@@ -53,14 +54,14 @@ def wave(count: int, length: float, width: float, origin=(0.0, 0.0), angle: floa
     x = np.linspace(0.0, length, 4001)
     k = (width / 2) / _WAVE_PEAK
     u = np.pi * (2 * x / length - 1)
-    y = k * np.exp(-(u**2) / 2) * np.sin(u)
+    y = k * exp(-(u**2) / 2) * sin_cos_degrees(u * (180.0 / np.pi))[0]
     dy = np.gradient(y, x)
     f = np.sqrt(1 + dy**2)  # cumulative trapezoid (scipy.integrate costs 0.8 s to import)
     s = np.concatenate([[0.0], np.cumsum(np.diff(x) * (f[1:] + f[:-1]) / 2.0)])
     targets = np.linspace(0.0, s[-1], count)
     xs = np.interp(targets, s, x)
     ys = np.interp(targets, s, y)
-    heading = np.degrees(np.arctan(np.interp(targets, s, dy)))
+    heading = atan2_degrees(np.interp(targets, s, dy), 1.0)
     return _place(np.column_stack([xs, ys]), heading, origin, angle)
 
 
@@ -100,12 +101,14 @@ def x_switch(count: int, width: float, origin=(0.0, 0.0), angle: float = 0.0) ->
     r = width / 2
     s45 = np.sqrt(0.5)
     # path A, descending from y = 0 to y = -width
-    turn_in = [(r * np.sin(a), -r + r * np.cos(a), -np.degrees(a)) for a in np.radians([0, 22.5, 45])]
+    sin, cos = sin_cos_degrees([0.0, 22.5, 45.0])
+    turn_in = [(r * s, -r + r * c, -a) for a, s, c in zip((0.0, 22.5, 45.0), sin, cos, strict=True)]
     start = np.array(turn_in[-1][:2])
     end = np.array([3 * r * s45, -r - r * s45])  # where the exit arc begins
     diagonal = [(*(start + t * (end - start)), -45.0) for t in np.linspace(0, 1, count - 4)[1:-1]]
     cx = 4 * r * s45
-    turn_out = [(cx - r * np.sin(a), -r - r * np.cos(a), -np.degrees(a)) for a in np.radians([45, 22.5, 0])]
+    turn_out = [(cx - r * s, -r - r * c, -a)
+                for a, s, c in zip((45.0, 22.5, 0.0), sin[::-1], cos[::-1], strict=True)]
     path_a = np.array(turn_in + diagonal + turn_out)
     centre = (count - 1) // 2
     path_a[centre, 2] = 0.0
@@ -156,7 +159,7 @@ def polyline(points, count: int | None = None, spacing: float | None = None) -> 
     on_corner = (np.abs(t) < 1e-9) & (idx > 0)
     prev = seg[idx - 1] / seg_len[idx - 1, None]
     direction = np.where(on_corner[:, None], direction + prev, direction)
-    heading = np.degrees(np.arctan2(direction[:, 1], direction[:, 0]))
+    heading = atan2_degrees(direction[:, 1], direction[:, 0])
     return np.column_stack([xy, heading])
 
 

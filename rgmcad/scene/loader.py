@@ -298,12 +298,13 @@ def _tilted(pose, thickness, height, tilt_deg):
     The paper's code turned the domino about a point one full thickness ahead and one full
     height below its centre, which lifts it off the ground; we turn it about the real edge.
     """
-    from rgmcad.geometry import pose6_of, pose_matrix, translation
+    from rgmcad.geometry import matmul, pose6_of, pose_matrix, translation
 
     standing = pose_matrix(pose)
     edge = np.array([thickness / 2, 0.0, -height / 2])
-    lean = translation(edge) @ pose_matrix((0, 0, 0, 0, 0, tilt_deg)) @ translation(-edge)
-    return tuple(float(v) for v in pose6_of(standing @ lean))
+    lean = matmul(matmul(translation(edge), pose_matrix((0, 0, 0, 0, 0, tilt_deg))),
+                  translation(-edge))
+    return tuple(float(v) for v in pose6_of(matmul(standing, lean)))
 
 
 def _parse_settings(raw, where) -> SimulationSettings:

@@ -33,13 +33,12 @@ condition as it is, and the causal graph fails the event when it holds (:mod:`rg
 
 from __future__ import annotations
 
-import math
 from collections.abc import Callable
 
 import numpy as np
 from scipy.spatial import ConvexHull
 
-from rgmcad.geometry import invert, point_in_frame
+from rgmcad.geometry import invert, matmul, point_in_frame, sin_cos_degrees
 from rgmcad.scene.eventspec import ENDS, Negation
 from rgmcad.scene.model import EventSpec
 from rgmcad.sim.world import World
@@ -159,7 +158,7 @@ def stopping(spec: EventSpec, world: World) -> Condition:
 def not_moving(spec: EventSpec, world: World) -> Condition:
     body = spec.objects["body"]
     tol = spec.params["position_tolerance"]
-    cos_limit = math.cos(math.radians(spec.params["angle_tolerance"]))
+    cos_limit = float(sin_cos_degrees(spec.params["angle_tolerance"])[1])
     start = world.pose(body)
 
     def condition():
@@ -175,9 +174,9 @@ def not_moving(spec: EventSpec, world: World) -> Condition:
 
 def toppling(spec: EventSpec, world: World) -> Condition:
     body = spec.objects["body"]
-    cos_limit = math.cos(math.radians(spec.params["angle"]))
+    cos_limit = float(sin_cos_degrees(spec.params["angle"])[1])
     start = world.pose(body)
-    up_in_body = start[:3, :3].T @ np.array([0.0, 0.0, 1.0])  # world up, in the body frame
+    up_in_body = start[2, :3].copy()  # world up, in the body frame
     cos_tilt = world.up_reader(body, up_in_body)
     return lambda: cos_tilt() <= cos_limit
 
@@ -203,7 +202,7 @@ def inclusion(spec: EventSpec, world: World) -> Condition:
             point = [r[0] * x + r[1] * y + r[2] * z + r[3] for r in rows]
             if not (x0 <= point[0] <= x1 and y0 <= point[1] <= y1 and z0 <= point[2] <= z1):
                 return False
-            return bool((normals @ point + offsets).max() <= 0.0)
+            return bool((matmul(normals, point) + offsets).max() <= 0.0)
 
         return condition
     # A moving container: the centre in its centre-of-mass frame in plain floats, outside a box
@@ -224,7 +223,8 @@ def inclusion(spec: EventSpec, world: World) -> Condition:
                 and c0 <= k20 * u + k21 * v + k22 * w + k23 <= c1):
             return False
         to_local = invert(world.pose(container))
-        return bool((normals @ (to_local[:3, :3] @ c + to_local[:3, 3]) + offsets).max() <= 0.0)
+        local = matmul(to_local[:3, :3], c) + to_local[:3, 3]
+        return bool((matmul(normals, local) + offsets).max() <= 0.0)
 
     return condition
 

@@ -13,6 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from rgmcad.geometry import dot, matmul, principal_axes
 from rgmcad.scene.bodies import SceneBody
 
 
@@ -32,8 +33,8 @@ def _mass_of(bodies: list[tuple[SceneBody, np.ndarray]]) -> _Mass:
         if m <= 0:
             continue
         rot = pose[:3, :3]
-        com = pose[:3, :3] @ body.built.centre_of_mass + pose[:3, 3]
-        inertia = rot @ (body.built.inertia_unit * (m / body.built.volume)) @ rot.T
+        com = matmul(rot, body.built.centre_of_mass) + pose[:3, 3]
+        inertia = matmul(matmul(rot, body.built.inertia_unit * (m / body.built.volume)), rot.T)
         parts.append((m, com, inertia))
         total += m
         moment += m * com
@@ -41,15 +42,16 @@ def _mass_of(bodies: list[tuple[SceneBody, np.ndarray]]) -> _Mass:
     inertia = np.zeros((3, 3))
     for m, c, i in parts:
         d = c - com
-        inertia += i + m * (d @ d * np.eye(3) - np.outer(d, d))  # parallel axis theorem
+        inertia += i + m * (dot(d, d) * np.eye(3) - np.outer(d, d))  # parallel axis theorem
     return _Mass(total, com, inertia)
 
 
 def _principal(inertia: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Principal moments (3,) and a right-handed rotation (3, 3) whose columns are the axes."""
-    moments, axes = np.linalg.eigh(0.5 * (inertia + inertia.T))
-    if np.linalg.det(axes) < 0:
-        axes[:, 2] *= -1
+    """Principal moments (3,) and a right-handed rotation (3, 3) whose columns are the axes
+    (see :func:`~rgmcad.geometry.principal_axes`: LAPACK's ``eigh`` differs across CPUs in the
+    last bits and, where two moments are equal, in which axes it returns at all; the inertial
+    frame is the frame pybullet simulates the body in)."""
+    moments, axes = principal_axes(inertia)
     return np.maximum(moments, 1e-12), axes
 
 

@@ -10,6 +10,7 @@ from __future__ import annotations
 import manifold3d
 import numpy as np
 
+from rgmcad.geometry import matmul
 from rgmcad.parts.pieces import BoxPiece
 from rgmcad.parts.store import BuiltBody
 from rgmcad.scene.ropes import path_of, ropes_fit_many, world_points
@@ -202,15 +203,15 @@ class LayoutValidity:
         to_other = poses[:, other]
         depth = np.zeros(len(poses))
         for piece in self.solids[other].built.pieces:
-            frames = to_other @ piece.frame
+            frames = matmul(to_other, piece.frame)
             local = np.einsum("rji,rj->ri", frames[:, :3, :3], centres - frames[:, :3, 3])
             depth = np.maximum(depth, sphere.radius - signed_distances(piece, local))
         return depth
 
     def _box_bodies_penetrate(self, boxes_a, boxes_b, pose_a, pose_b) -> np.ndarray:
         """(r,) bool: certain penetration of two box-made solids (see ``__init__``)."""
-        frames_a = pose_a[:, None] @ boxes_a[0][None]  # (r, pa, 4, 4)
-        frames_b = pose_b[:, None] @ boxes_b[0][None]
+        frames_a = matmul(pose_a[:, None], boxes_a[0][None])  # (r, pa, 4, 4)
+        frames_b = matmul(pose_b[:, None], boxes_b[0][None])
         r, pa, pb = len(pose_a), len(boxes_a[0]), len(boxes_b[0])
         shape = (r, pa, pb)
         deep = _boxes_share_a_deep_point(

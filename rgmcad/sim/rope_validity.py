@@ -26,6 +26,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from rgmcad.geometry import matmul
 from rgmcad.parts.pieces import SpherePiece
 from rgmcad.parts.store import BuiltBody
 from rgmcad.sim.cache import PartCache
@@ -171,7 +172,7 @@ def rope_crossings(bodies: Sequence, poses: np.ndarray, ropes: Sequence[RopePath
 
     def local(row, i, point):
         pose = poses[row, i]
-        return pose[:3, :3].T @ (point - pose[:3, 3])
+        return matmul(pose[:3, :3].T, point - pose[:3, 3])
 
     def distance(row, i, point):
         if bodies[i].built is None:

@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import math
 
+from rgmcad.geometry import matmul
 from rgmcad.scene.bodies import Scene
 from rgmcad.sim.engine import pb
 
@@ -177,7 +178,7 @@ class RopeSolver:
                     else:
                         h = hinge_of[key]
                         bodies[key] = _Hinged(handle.uid, cid, gravity, h.point, h.axis)
-                at = handle.com_to_part[:3, :3] @ local + handle.com_to_part[:3, 3]
+                at = matmul(handle.com_to_part[:3, :3], local) + handle.com_to_part[:3, 3]
                 ends.append((bodies[key], tuple(float(x) for x in at)))
             pulleys = [tuple(float(x) for x in p) for p in rope.points[1:-1]]
             middle = sum(math.dist(a, b) for a, b in zip(pulleys[:-1], pulleys[1:], strict=True))

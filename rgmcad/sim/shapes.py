@@ -24,7 +24,7 @@ from functools import singledispatch
 
 import numpy as np
 
-from rgmcad.geometry import to_pybullet, transform_points
+from rgmcad.geometry import matmul, to_pybullet, transform_points
 from rgmcad.parts.pieces import (
     BoxPiece,
     CapsulePiece,
@@ -218,8 +218,8 @@ def packed(pieces: list[tuple[Piece, np.ndarray]]) -> list[tuple[Piece | Hulls, 
     own = np.array([piece.frame for piece, _ in pieces], float)
     inverse = np.tile(np.eye(4), (len(pieces), 1, 1))
     inverse[:, :3, :3] = own[:, :3, :3].transpose(0, 2, 1)
-    inverse[:, :3, 3] = -np.einsum("nij,nj->ni", inverse[:, :3, :3], own[:, :3, 3])
-    outers = np.array([frame for _, frame in pieces], float) @ inverse
+    inverse[:, :3, 3] = -matmul(inverse[:, :3, :3], own[:, :3, 3, None])[..., 0]
+    outers = matmul(np.array([frame for _, frame in pieces], float), inverse)
     keys = np.round(outers, 12)  # merges frames equal to 1e-12; a body's first piece places it
     # key -> (the scene body's frame, its hull pieces, its primitives with their frames)
     bodies: dict[bytes, tuple[np.ndarray, list, list]] = {}
@@ -249,7 +249,7 @@ def packed(pieces: list[tuple[Piece, np.ndarray]]) -> list[tuple[Piece | Hulls, 
                             outer))
         return out
     # one baked file: every hull, and as many boxes as it takes
-    baked = [(p, outer @ np.asarray(p.frame, float)) for outer, hulls, _ in bodies.values()
+    baked = [(p, matmul(outer, p.frame)) for outer, hulls, _ in bodies.values()
              for p in hulls]
     prims = [e for _, _, p in bodies.values() for e in p]
     boxes = [i for i, (p, _) in enumerate(prims) if isinstance(p, BoxPiece)]

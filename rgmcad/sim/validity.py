@@ -25,7 +25,7 @@ from dataclasses import dataclass
 import manifold3d
 import numpy as np
 
-from rgmcad.geometry import invert, transform_points
+from rgmcad.geometry import invert, matmul, principal_axes, transform_points
 from rgmcad.parts.pieces import SpherePiece
 from rgmcad.parts.store import BuiltBody
 from rgmcad.scene.bodies import Scene, SceneBody
@@ -88,8 +88,8 @@ def _boxes_apart(centres, halves, rot, first, second, margin: float) -> np.ndarr
     norm = np.linalg.norm(axes, axis=2)
     usable = norm > 1e-9
     axes = axes / np.where(usable, norm, 1.0)[..., None]
-    reach = (np.abs(np.einsum("pkj,pji->pki", axes, ra)) @ halves[first][..., None])[..., 0] + (
-        np.abs(np.einsum("pkj,pji->pki", axes, rb)) @ halves[second][..., None])[..., 0]
+    reach = (matmul(np.abs(matmul(axes, ra)), halves[first][..., None])
+             + matmul(np.abs(matmul(axes, rb)), halves[second][..., None]))[..., 0]
     gap = np.abs(np.einsum("pkj,pj->pk", axes, centres[second] - centres[first]))
     return np.any(usable & (gap > reach - margin), axis=1)
 
@@ -133,7 +133,7 @@ def _pair_penetration(a: BuiltBody, pose_a, b: BuiltBody, pose_b,
     if depth is not None:
         return depth, 0.0
     inter = _manifold(a, cache) ^ _manifold(b, cache).transform(
-        (invert(pose_a) @ pose_b)[:3, :4])  # in a's frame
+        matmul(invert(pose_a), pose_b)[:3, :4])  # in a's frame
     if inter.is_empty():
         return 0.0, 0.0
     volume = float(inter.volume())
@@ -144,7 +144,7 @@ def _pair_penetration(a: BuiltBody, pose_a, b: BuiltBody, pose_b,
 
 def _plane_depth(body: BuiltBody, pose, origin, normal) -> float:
     """How far (m) a posed body reaches below a plane (negative when it stays above)."""
-    return -float(((transform_points(pose, body.vertices) - origin) @ normal).min())
+    return -float(matmul(transform_points(pose, body.vertices) - origin, normal).min())
 
 
 def thickness(points: np.ndarray) -> float:
@@ -152,8 +152,8 @@ def thickness(points: np.ndarray) -> float:
     if len(points) < 4:
         return 0.0
     centred = points - points.mean(axis=0)
-    _, _, vt = np.linalg.svd(centred, full_matrices=False)
-    proj = centred @ vt[-1]
+    _, axes = principal_axes(matmul(centred.T, centred))
+    proj = matmul(centred, axes[:, 0])
     return float(proj.max() - proj.min())
 
 
@@ -181,7 +181,7 @@ def check_validity(
         normal = plane.pose[:3, 2]
         origin = plane.pose[:3, 3]
         # lowest point of each oriented box along the plane's normal
-        lowest = (centres - origin) @ normal - np.einsum(
+        lowest = matmul(centres - origin, normal) - np.einsum(
             "ni,ni->n", np.abs(np.einsum("nji,j->ni", rot, normal)), halves
         )
         for k in np.flatnonzero(lowest < -tolerance):
@@ -196,7 +196,7 @@ def check_validity(
                     return Validity(False, tuple(overlaps), tested)
 
     if len(solids) > 1:
-        reach = np.abs(rot) @ halves[..., None]  # (n, 3, 1): half extents of the world box
+        reach = matmul(np.abs(rot), halves[..., None])  # (n, 3, 1): half extents of the world box
         lo = centres - reach[..., 0] + tolerance / 2
         hi = centres + reach[..., 0] - tolerance / 2
         hits = np.all((lo[:, None, :] < hi[None, :, :]) & (lo[None, :, :] < hi[:, None, :]), axis=2)

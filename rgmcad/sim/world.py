@@ -27,7 +27,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from rgmcad.geometry import from_pybullet, invert, moved_point, rotated_z, to_pybullet
+from rgmcad.geometry import from_pybullet, invert, matmul, moved_point, norm, rotated_z, to_pybullet
 from rgmcad.parts.pieces import ConvexPiece, Piece, PlanePiece
 from rgmcad.scene.bodies import Scene, SceneBody
 from rgmcad.scene.model import SimulationSettings
@@ -176,11 +176,11 @@ class World:
         inv = invert(frame)
         out = []
         for body in members:
-            rel = inv @ body.pose
+            rel = matmul(inv, body.pose)
             if body.plane:
                 out.append((PlanePiece(), rel))
             else:
-                out.extend((piece, rel @ piece.frame) for piece in body.built.pieces)
+                out.extend((piece, matmul(rel, piece.frame)) for piece in body.built.pieces)
         return out
 
     def _centre_of_mass(self, members: list[SceneBody], frame: np.ndarray):
@@ -191,7 +191,8 @@ class World:
             body = members[0]  # identity so that it does not depend on the first pose seen
             return self.cache.get(("mass", body.mass), body.built,
                                   lambda: inertial_frame([(body, np.eye(4))]))
-        return inertial_frame([(b, invert(frame) @ b.pose) for b in members if not b.static])
+        return inertial_frame([(b, matmul(invert(frame), b.pose)) for b in members
+                               if not b.static])
 
     def _inertial(self, members: list[SceneBody], frame: np.ndarray):
         """:meth:`_centre_of_mass`, with the inertial frame as pybullet takes it (position,
@@ -219,9 +220,9 @@ class World:
             baseOrientation=orn, baseInertialFramePosition=ipos,
             baseInertialFrameOrientation=iorn, useMaximalCoordinates=True)
         self._finish_free(uid, members, mass, moments)
-        to_part = com_inverse @ invert(frame)
+        to_part = matmul(com_inverse, invert(frame))
         for b in members:
-            self.handles[b.name] = Handle(uid, -1, to_part @ b.pose)
+            self.handles[b.name] = Handle(uid, -1, matmul(to_part, b.pose))
 
     def _build_batch(self, bodies: list[SceneBody]):
         """Several free bodies with the same part and properties, created in one call."""
@@ -236,7 +237,7 @@ class World:
             batchPositions=[b.pose[:3, 3].tolist() for b in bodies],
             useMaximalCoordinates=True)
         for uid, body in zip(uids, bodies, strict=True):
-            pos, orn = to_pybullet(body.pose @ com_frame)  # the reset takes the COM frame
+            pos, orn = to_pybullet(matmul(body.pose, com_frame))  # the reset takes the COM frame
             self.engine.resetBasePositionAndOrientation(uid, pos, orn)
             self._finish_free(uid, [body], mass, moments)
             self.handles[body.name] = Handle(uid, -1, to_part)
@@ -264,15 +265,15 @@ class World:
             base_members, base_frame, base_shape = [], np.eye(4), -1
         # link frame: at the hinge point, axis along its local z
         frame = self._group_frame(members)
-        axis = hinge.axis / np.linalg.norm(hinge.axis)
+        axis = hinge.axis / norm(hinge.axis)
         link_frame = np.eye(4)
         link_frame[:3, :3] = frame[:3, :3]
         link_frame[:3, 3] = hinge.point
-        local_axis = frame[:3, :3].T @ axis
+        local_axis = matmul(frame[:3, :3].T, axis)
         shape = self._shape(self._pieces_in(members, link_frame))
         mass, com_frame, moments = inertial_frame(
-            [(b, invert(link_frame) @ b.pose) for b in members if not b.static])
-        link_in_base = invert(base_frame) @ link_frame
+            [(b, matmul(invert(link_frame), b.pose)) for b in members if not b.static])
+        link_in_base = matmul(invert(base_frame), link_frame)
         bpos, born = to_pybullet(base_frame)
         lpos, lorn = to_pybullet(link_in_base)
         ipos, iorn = to_pybullet(com_frame)
@@ -290,9 +291,10 @@ class World:
         if base_members:
             self._surface(uid, -1, base_members[0])
         for b in base_members:
-            self.handles[b.name] = Handle(uid, -1, invert(base_frame) @ b.pose)
+            self.handles[b.name] = Handle(uid, -1, matmul(invert(base_frame), b.pose))
         for b in members:
-            self.handles[b.name] = Handle(uid, 0, invert(com_frame) @ invert(link_frame) @ b.pose)
+            self.handles[b.name] = Handle(uid, 0, matmul(matmul(invert(com_frame), invert(link_frame)),
+                                                  b.pose))
 
     def _surface(self, uid, link, body: SceneBody, **extra):
         phys = body.physical
@@ -358,7 +360,7 @@ class World:
         """(4, 4) world transform of the body's part frame."""
         h = self.handles[name]
         pos, orn = self._com_state(h)
-        return from_pybullet(pos, orn) @ h.com_to_part
+        return matmul(from_pybullet(pos, orn), h.com_to_part)
 
     def velocity(self, name: str) -> tuple[np.ndarray, np.ndarray]:
         """Linear velocity (3,) m/s of the body's rigid body's centre of mass, angular (3,) rad/s."""
@@ -395,7 +397,7 @@ class World:
         """A function returning the world z component of ``direction`` (3,), a unit vector fixed
         in the body's part frame: the cosine of its angle to the vertical."""
         h = self.handles[name]
-        direction = tuple((h.com_to_part[:3, :3] @ np.asarray(direction, float)).tolist())
+        direction = tuple(matmul(h.com_to_part[:3, :3], direction).tolist())
         frame = self.frame_reader(name)  # through the rotation of the centre-of-mass frame
         return lambda: rotated_z(frame()[1], direction)
 
@@ -403,8 +405,7 @@ class World:
         """A function returning the world position (x, y, z) of ``point`` (3,), a point fixed
         in the body's part frame."""
         h = self.handles[name]
-        point = tuple((h.com_to_part[:3, :3] @ np.asarray(point, float)
-                       + h.com_to_part[:3, 3]).tolist())
+        point = tuple((matmul(h.com_to_part[:3, :3], point) + h.com_to_part[:3, 3]).tolist())
         frame = self.frame_reader(name)
 
         def read():
