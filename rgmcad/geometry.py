@@ -10,13 +10,13 @@ Inside rgmcad a pose is a ``(4, 4) float`` homogeneous matrix. pybullet wants po
 ``(x, y, z, w)`` quaternions; :func:`to_pybullet` and :func:`from_pybullet` are the only
 conversions.
 
-Everything on the way into the simulator is computed here with elementwise operations in a
-fixed order (:func:`matmul`, :func:`norm`, :func:`sin_cos_degrees`), never with numpy's ``@``
-(BLAS) or its vectorised sine and cosine: those pick a kernel for the CPU, and each kernel
-rounds the last bit its own way, which contact physics turns into another outcome. Additions,
-multiplications, divisions and square roots are rounded exactly on every CPU, so a layout
-simulates the same on every machine (docs/decisions.md, "Simulations that do not depend on
-the CPU").
+Everything on the way into the simulator is computed with the functions here
+(:func:`matmul`, :func:`norm`, :func:`sin_cos_degrees`, :func:`principal_axes`, ...), never
+with numpy's ``@`` (BLAS), LAPACK, or numpy's and the C library's sines and arctangents: those
+pick a kernel for the CPU, each kernel rounds the last bit its own way, and contact physics
+turns a last-bit difference into another outcome. Additions, multiplications, divisions and
+square roots in a fixed order are rounded alike on every CPU, so a layout simulates the same
+on every machine (docs/decisions.md, "Simulations that do not depend on the CPU").
 """
 
 from __future__ import annotations
@@ -62,7 +62,8 @@ def sin_cos_degrees(angles) -> tuple[np.ndarray, np.ndarray]:
 
 _ATAN = tuple((-1) ** k / (2 * k + 1) for k in range(23))  # on |t| <= tan(pi/8)
 _EXP = tuple(1 / math.factorial(k) for k in range(15))  # on |r| <= ln(2)/2
-_LN2_HI, _LN2_LO = 0.6931471803691238, 1.9082149292705877e-10  # ln 2, the first 32 bits exact
+# ln 2 in two parts: k * _LN2_HI is exact (its last 32 bits are zeros)
+_LN2_HI, _LN2_LO = 0.6931471803691238, 1.9082149292705877e-10
 
 
 def atan2_degrees(y, x) -> np.ndarray:
