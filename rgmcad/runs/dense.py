@@ -23,6 +23,7 @@ from collections.abc import Callable
 import numpy as np
 from scipy.stats import qmc
 
+from rgmcad.geometry import dot
 from rgmcad.runs.robustness import (
     EPS_GRID,
     ETA,
@@ -143,7 +144,7 @@ def dense_curve(x: np.ndarray, points: np.ndarray, success: np.ndarray,
 
     counts, succ, rho = (a[0] for a in curve(np.ones((1, len(k)))))
     gen = np.random.default_rng(rng)
-    rho_g = float(weights @ rho)
+    rho_g = float(dot(weights, rho))
     se = float((curve(gen.poisson(1.0, (boot, len(k))))[2] @ weights).std(ddof=1)) \
         if boot > 1 and len(k) else 0.5
     low, high = wilson_interval(succ.astype(int), counts.astype(int), z)

@@ -49,6 +49,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from rgmcad.geometry import dot
 from rgmcad.runs.problem import SimRecord, simulate_layout_task
 from rgmcad.scene.perturbation import PhysicsDraw, PhysicsRanges
 from rgmcad.sim.run import Outcome
@@ -297,9 +298,9 @@ def _curve(x, eps, sizes, records, n_tested, z, eta) -> RobustnessCurve:
         rho = np.where(counts > 0, succ / np.maximum(counts, 1), 0.0)
     low, high = wilson_interval(succ, counts, z)
     weights = trapezoid_weights(eps)
-    rho_g = float(weights @ rho)
+    rho_g = float(dot(weights, rho))  # the same last bit on every CPU (no BLAS)
     var = np.where(counts > 0, rho * (1 - rho) / np.maximum(counts, 1), 0.25)
-    half = z * float(np.sqrt(weights**2 @ var))
+    half = z * float(np.sqrt(dot(weights**2, var)))
     return RobustnessCurve(
         x=x, eps=eps, successes=succ, counts=counts, rho=rho, low=low, high=high,
         rho_g=rho_g, rho_g_low=max(0.0, rho_g - half), rho_g_high=min(1.0, rho_g + half),
