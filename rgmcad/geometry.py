@@ -106,10 +106,7 @@ def matmul(a, b) -> np.ndarray:
     if subscripts is not None:
         return np.einsum(subscripts, a, b)
     if b.ndim == 1:
-        out = a[..., 0] * b[0]
-        for j in range(1, b.shape[0]):
-            out = out + a[..., j] * b[j]
-        return out
+        return dot(a, b)
     if a.ndim == 1:
         return matmul(a[None], b)[..., 0, :]
     out = a[..., :, 0:1] * b[..., 0:1, :]

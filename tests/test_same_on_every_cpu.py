@@ -14,6 +14,7 @@ import platform
 import subprocess
 import sys
 
+import numpy as np
 import pytest
 
 # Every shipped scenario's `solved` layout and two random valid ones (seeded): compound bodies,
@@ -95,8 +96,6 @@ def test_the_same_layouts_simulate_to_the_same_bits_under_another_cpus_kernels()
 # The arithmetic that makes it so, against numpy's (within a few units in the last place).
 
 def test_sines_and_cosines_of_degrees_are_numpys_and_exact_at_quarter_turns():
-    import numpy as np
-
     from rgmcad.geometry import sin_cos_degrees
 
     angles = np.random.default_rng(0).uniform(-45, 45, 10000)
@@ -113,8 +112,6 @@ def test_sines_and_cosines_of_degrees_are_numpys_and_exact_at_quarter_turns():
 
 
 def test_arctangent_exponential_and_products_agree_with_numpy():
-    import numpy as np
-
     from rgmcad.geometry import atan2_degrees, exp, matmul, norm
 
     rng = np.random.default_rng(2)
@@ -132,8 +129,6 @@ def test_arctangent_exponential_and_products_agree_with_numpy():
 
 
 def test_principal_axes_diagonalise_and_keep_what_is_already_principal():
-    import numpy as np
-
     from rgmcad.geometry import principal_axes
 
     rng = np.random.default_rng(3)
