@@ -9,8 +9,9 @@ __all__ = ["add_physics_arg", "add_robustness_arg", "physics_arg", "robustness_a
            "robustness_options", "robustness_lines"]
 
 _HELP = ("physical errors of the second rho_g: 'default' (friction +-20 %%, mass +-10 %%, "
-         "restitution +-20 %%), KEY=RANGE,... (e.g. friction=0.3,mass=0.05; unnamed keys keep "
-         "their default) or 'off' (placement errors only)")
+         "restitution +-20 %%), KEY=VALUE,... (e.g. friction=0.3,mass=0.05; unnamed keys keep "
+         "their default; position=0.002,heading=1 also moves every part by up to +-2 mm and "
+         "+-1 degree, as a hand places it) or 'off' (placement errors only)")
 
 
 def add_physics_arg(p: argparse.ArgumentParser) -> None:

@@ -14,6 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from rgmcad.runs.robustness import close_in_warning
+from rgmcad.scene.perturbation import PhysicsRanges
 
 __all__ = ["REPORT_FILE", "SLICE_PLOT", "PROGRESS_PLOT", "ROBUSTNESS_PLOT", "ERROR_GRID",
            "report_markdown", "plot_slice", "plot_progress", "plot_robustness",
@@ -120,7 +121,7 @@ def _robustness_lines(r: dict | None) -> list[str]:
     p = r.get("physics")
     if p:
         low, high = p["rho_g_interval"]
-        ranges = ", ".join(f"{k} +-{v:.0%}" for k, v in p["ranges"].items())
+        ranges = PhysicsRanges(**p["ranges"]).describe()
         out.append(f"- rho_g under placement plus physical errors ({ranges}): "
                    f"**{p['rho_g']:.3f}** [{low:.3f}, {high:.3f}]")
     warning = close_in_warning(r, point_to_evaluate=True)

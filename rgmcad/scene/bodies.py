@@ -91,9 +91,11 @@ def load_parts(scenario: Scenario, build_dir: Store = DEFAULT_BUILD_DIR) -> dict
             for obj in scenario.body_objects()}
 
 
-def make_scene(scenario: Scenario, values, parts: Mapping[str, BuiltPart]) -> Scene:
-    """Resolve the layout with real parameter ``values`` (d,) into posed bodies and joints."""
-    poses = world_poses(scenario, values)
+def make_scene(scenario: Scenario, values, parts: Mapping[str, BuiltPart],
+               offsets: Mapping[str, np.ndarray] | None = None) -> Scene:
+    """Resolve the layout with real parameter ``values`` (d,) into posed bodies and joints;
+    ``offsets`` move objects from their place (:func:`~rgmcad.scene.design_space.world_poses`)."""
+    poses = world_poses(scenario, values, offsets)
     bodies: dict[str, SceneBody] = {}
     hinges: list[Hinge] = []
     fixed_parts: list[list[str]] = []

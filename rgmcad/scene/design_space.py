@@ -53,19 +53,24 @@ def local_poses(scenario: Scenario, values) -> dict[str, tuple[float, ...]]:
     return {k: tuple(v) for k, v in poses.items()}
 
 
-def world_poses(scenario: Scenario, values) -> dict[str, np.ndarray]:
+def world_poses(scenario: Scenario, values, offsets: Mapping[str, np.ndarray] | None = None
+                ) -> dict[str, np.ndarray]:
     """(4, 4) world transform of every object (frames included) for real ``values`` (d,):
     :func:`world_poses_many` of one layout (bit for bit what it gives that layout among
     many, so validity and simulation see the same poses)."""
     values = np.asarray(values, float)
     if values.shape != (scenario.dimension,):
         raise ValueError(f"expected {scenario.dimension} values, got {values.shape}")
-    return {name: poses[0] for name, poses in world_poses_many(scenario, values[None]).items()}
+    return {name: poses[0]
+            for name, poses in world_poses_many(scenario, values[None], offsets).items()}
 
 
-def world_poses_many(scenario: Scenario, values) -> dict[str, np.ndarray]:
+def world_poses_many(scenario: Scenario, values, offsets: Mapping[str, np.ndarray] | None = None
+                     ) -> dict[str, np.ndarray]:
     """(n, 4, 4) world transforms of every object (frames included) for n layouts of real
-    ``values`` (n, d); children compose their parent-relative pose onto their parent's."""
+    ``values`` (n, d); children compose their parent-relative pose onto their parent's.
+    ``offsets``: ``{object: (6,)}`` added to those objects' parent-relative poses (x, y, z,
+    heading, pitch, roll) after the free values are set (where a hand put them)."""
     values = np.atleast_2d(np.asarray(values, float))
     row = {name: i for i, name in enumerate(scenario.objects)}
     # every object's local pose in every layout, made in one vectorised call
@@ -73,6 +78,8 @@ def world_poses_many(scenario: Scenario, values) -> dict[str, np.ndarray]:
                        len(values), axis=1)
     for i, f in enumerate(scenario.free):
         local6[row[f.object], :, POSE_KEYS.index(f.component)] = values[:, i]
+    for name, offset in (offsets or {}).items():
+        local6[row[name]] += np.asarray(offset, float)
     local = pose_matrices(local6.reshape(-1, 6)).reshape(len(row), len(values), 4, 4)
     world: dict[str, np.ndarray] = {}
 

@@ -17,6 +17,20 @@ them. The bodies of a weld group move as one rigid body and take the factors of 
 first member. Factors are rounded to steps of 1e-3, far below any measurement of friction or
 mass, which bounds the mass-dependent data a simulation process caches per part.
 Zero-width ranges return the scene itself: the simulation is exactly the unperturbed one.
+
+Where a hand put each part (``position``, ``heading``; off by default)
+-----------------------------------------------------------------------
+Placement errors of the design space move only the free parameters; a maker also places every
+fixed part by hand. With ``position`` (m) or ``heading`` (degrees), each part object gets its
+own offsets, uniform in ``+-position`` along its parent frame's x and y and ``+-heading``
+about its parent frame's z (a part on a plank slides along the plank), added to its
+parent-relative pose. Not moved: frames (a domino run's dominoes move one by one), infinite
+planes, and objects joined to another object by a hinge or weld (they move with their parent,
+or their joint would be torn apart at the first step). Offsets are drawn from ``(seed, index,
+object name, attempt)``. A hand does not push a part into another: when the placed layout
+is not valid, the simulation draws again the objects whose bodies intersect (their next
+attempt; :data:`PLACEMENT_SCALES`: full size eight times, then halved, at last where
+designed) until it is.
 """
 
 from __future__ import annotations
@@ -24,23 +38,33 @@ from __future__ import annotations
 import dataclasses
 import hashlib
 import zlib
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 
 import numpy as np
 
 from rgmcad.errors import UsageError
 from rgmcad.scene.bodies import Scene, SceneBody
+from rgmcad.scene.model import FRAME, Scenario
 
-__all__ = ["PhysicsRanges", "PhysicsDraw", "DEFAULT_PHYSICS", "parse_physics_ranges",
-           "layout_draw"]
+__all__ = ["PhysicsRanges", "PhysicsDraw", "DEFAULT_PHYSICS", "PLACEMENT_SCALES",
+           "parse_physics_ranges", "layout_draw", "hand_placed_objects"]
 
 _STEP = 1e-3
 _PHYSICS_STREAM = 0x5048_5953  # keeps physics draws apart from any placement stream
+_HAND_STREAM = 0x48_414E_44  # and a hand's offsets apart from both
+
+PLACEMENT_SCALES = (1.0,) * 8 + (0.5, 0.25, 0.125, 0.0)
+"""Sizes of an object's offsets at its attempts 0, 1, ...: eight full-size draws, then
+smaller ones, at last none (where designed), so every layout finds a valid placement."""
+_LIMITS = {"friction": 0.9, "mass": 0.9, "restitution": 1.0, "position": 0.05, "heading": 10.0}
+_HINTS = {"position": "metres (0.002 is +-2 mm)", "heading": "degrees (1 is +-1 degree)"}
 
 
 @dataclass(frozen=True)
 class PhysicsRanges:
-    """Relative half-widths of the physical perturbation (0.2: factors in [0.8, 1.2]).
+    """Relative half-widths of the physical perturbation (0.2: factors in [0.8, 1.2]), and
+    absolute half-widths of where a hand puts each part.
 
     Attributes
     ----------
@@ -50,30 +74,57 @@ class PhysicsRanges:
         Mass, and with it inertia (default 0.1, +-10 %).
     restitution : float, in [0, 1]
         Restitution, clipped to [0, 1] after scaling (default 0.2, +-20 %).
+    position : float, in [0, 0.05]
+        Metres: every part's x and y in its parent's frame (default 0: off).
+    heading : float, in [0, 10]
+        Degrees: every part's heading (default 0: off).
     """
 
     friction: float = 0.2
     mass: float = 0.1
     restitution: float = 0.2
+    position: float = 0.0
+    heading: float = 0.0
 
     def __post_init__(self):
-        for key, high in (("friction", 0.9), ("mass", 0.9), ("restitution", 1.0)):
+        for key, high in _LIMITS.items():
             value = getattr(self, key)
             if isinstance(value, bool) or not isinstance(value, (int, float)) \
                     or not 0.0 <= value <= high:
-                raise UsageError("physics", key, f"expected a relative range from 0 to {high} "
-                                 f"(0.2 is +-20 %), got {value!r}")
+                hint = _HINTS.get(key, "relative range (0.2 is +-20 %)")
+                raise UsageError("physics", key, f"expected a {hint} from 0 to {high}, "
+                                 f"got {value!r}")
 
     @property
     def zero(self) -> bool:
-        return self.friction == self.mass == self.restitution == 0.0
+        return not self.changes_physics and not self.moves_parts
+
+    @property
+    def changes_physics(self) -> bool:
+        """Whether friction, mass or restitution is perturbed."""
+        return not self.friction == self.mass == self.restitution == 0.0
+
+    @property
+    def moves_parts(self) -> bool:
+        """Whether a hand's placement errors move every part."""
+        return self.position > 0.0 or self.heading > 0.0
 
     def describe(self) -> str:
-        return (f"friction +-{self.friction:.0%}, mass +-{self.mass:.0%}, "
+        text = (f"friction +-{self.friction:.0%}, mass +-{self.mass:.0%}, "
                 f"restitution +-{self.restitution:.0%}")
+        if self.moves_parts:
+            text += (f", every part within +-{self.position * 1000:g} mm and "
+                     f"+-{self.heading:g} deg of its place")
+        return text
 
     def to_json(self) -> dict:
-        return dataclasses.asdict(self)
+        """The ranges as JSON; a hand's ranges only when set (so runs and benchmark trials
+        made before they existed read as the same settings)."""
+        out = dataclasses.asdict(self)
+        for key in ("position", "heading"):
+            if out[key] == 0.0:
+                del out[key]
+        return out
 
 
 DEFAULT_PHYSICS = PhysicsRanges()
@@ -93,7 +144,7 @@ def parse_physics_ranges(text: str, where: str = "--physics") -> PhysicsRanges |
         key, sep, value = item.partition("=")
         key = key.strip()
         if not sep or key not in keys:
-            raise UsageError(where, repr(item), "expected 'off', 'default' or KEY=RANGE,... "
+            raise UsageError(where, repr(item), "expected 'off', 'default' or KEY=VALUE,... "
                              f"with KEY one of {', '.join(keys)}")
         try:
             given[key] = float(value)
@@ -124,12 +175,61 @@ class PhysicsDraw:
     def apply(self, scene: Scene) -> Scene:
         """The scene with every body's physical properties perturbed (the scene itself when
         every range is zero)."""
-        if self.ranges.zero:
+        if not self.ranges.changes_physics:
             return scene
         first = {name: group[0] for group in scene.welds for name in group}
         bodies = {name: _perturbed(body, self.factors(first.get(name, name)))
                   for name, body in scene.bodies.items()}
         return dataclasses.replace(scene, bodies=bodies)
+
+
+    def offsets(self, movable: Iterable[str], attempts: Mapping[str, int] | None = None
+                ) -> dict[str, np.ndarray]:
+        """Where a hand put each object of ``movable``: ``{name: (6,) offset of its
+        parent-relative pose (x, y, z, heading, pitch, roll)}``, the object's draw number
+        ``attempts[name]`` (default 0) scaled by ``PLACEMENT_SCALES`` of it (empty when no
+        hand's ranges are set)."""
+        r = self.ranges
+        if not r.moves_parts:
+            return {}
+        attempts = attempts or {}
+        out = {}
+        for name in movable:
+            attempt = min(int(attempts.get(name, 0)), len(PLACEMENT_SCALES) - 1)
+            key = (_HAND_STREAM, int(self.index), zlib.crc32(name.encode()), attempt)
+            u = np.random.default_rng(np.random.SeedSequence(int(self.seed), spawn_key=key))
+            dx, dy, dh = u.uniform(-1.0, 1.0, 3) * PLACEMENT_SCALES[attempt] * np.array(
+                (r.position, r.position, r.heading))
+            out[name] = np.array([dx, dy, 0.0, dh, 0.0, 0.0])
+        return out
+
+
+def hand_placed_objects(scenario: Scenario, infinite: Iterable[str] = ()) -> list[str]:
+    """The objects a hand places one by one, in file order: every part object except infinite
+    planes (``infinite``: their names) and objects joined to others by hinges or welds; of
+    such a group only the member that all the others descend from is placed (they follow
+    it), and none when there is no such member (moving one would tear its joints apart)."""
+    group: dict[str, set[str]] = {}
+    for joint in scenario.joints:
+        if len(joint.objects) > 1:
+            merged = set(joint.objects).union(*(group.get(n, set()) for n in joint.objects))
+            for name in merged:
+                group[name] = merged
+
+    def ancestors(name):
+        out, parent = set(), scenario.objects[name].parent
+        while parent is not None:
+            out.add(parent)
+            parent = scenario.objects[parent].parent
+        return out
+
+    skip = set(infinite)
+    for name, members in group.items():
+        others = members - {name}
+        if not all(name in ancestors(o) for o in others):
+            skip.add(name)
+    return [obj.name for obj in scenario.objects.values()
+            if obj.part != FRAME and obj.name not in skip]
 
 
 def _perturbed(body: SceneBody, factors: tuple[float, float, float]) -> SceneBody:

@@ -19,9 +19,9 @@ from enum import StrEnum
 import numpy as np
 
 from rgmcad.parts.store import BuiltPart
-from rgmcad.scene.bodies import make_scene
+from rgmcad.scene.bodies import Scene, make_scene
 from rgmcad.scene.model import Scenario
-from rgmcad.scene.perturbation import PhysicsDraw
+from rgmcad.scene.perturbation import PLACEMENT_SCALES, PhysicsDraw, hand_placed_objects
 from rgmcad.sim.cache import PartCache
 from rgmcad.sim.causal import CausalGraph, EventState
 from rgmcad.sim.engine import Engine
@@ -118,6 +118,8 @@ def simulate(scenario: Scenario, values, parts: Mapping[str, BuiltPart], *,
             return SimulationResult(Outcome.INVALID, events, 0.0, elapsed, validity=validity,
                                     validity_time=elapsed)
     if physics is not None:
+        if physics.ranges.moves_parts:
+            scene = _placed_by_hand(scenario, values, parts, physics, scene, tolerance, cache)
         scene = physics.apply(scene)
     built_at = time.perf_counter()
     settings = scenario.settings
@@ -137,6 +139,41 @@ def simulate(scenario: Scenario, values, parts: Mapping[str, BuiltPart], *,
     events = tuple(EventRecord(n, graph.state[n], graph.time[n]) for n in scenario.events)
     return SimulationResult(outcome, events, t, time.perf_counter() - start, steps, validity,
                             built_at - start, ready_at - built_at)
+
+
+def _placed_by_hand(scenario, values, parts, physics: PhysicsDraw, designed: Scene,
+                    tolerance: float, cache) -> Scene:
+    """The layout as a hand places it under ``physics``: every hand-placed object at its
+    draw; objects whose bodies intersect drawn again (smaller and smaller, at last where
+    designed) until nothing does."""
+    movable = hand_placed_objects(scenario, [n for n, p in parts.items() if p.infinite])
+    placed = set(movable)
+    attempts = dict.fromkeys(movable, 0)
+    last = len(PLACEMENT_SCALES) - 1
+    values = np.asarray(values, float)
+    while True:
+        scene = make_scene(scenario, values, parts, physics.offsets(movable, attempts))
+        validity = check_validity(scene, tolerance, cache=cache)
+        if validity.valid:
+            return scene
+        involved = set()
+        for overlap in validity.overlaps:
+            movers = {_placed_owner(scenario, scene, body, placed)
+                      for body in (overlap.first, overlap.second)} - {None}
+            involved |= movers or placed  # a rope's path: every object drawn again
+        involved = {name for name in involved if attempts[name] < last}
+        if not involved:
+            return designed
+        for name in involved:
+            attempts[name] += 1
+
+
+def _placed_owner(scenario, scene: Scene, body: str, placed: set[str]) -> str | None:
+    """The hand-placed object that moved ``body`` (its object or nearest such ancestor)."""
+    name = scene.bodies[body].object if body in scene.bodies else None
+    while name is not None and name not in placed:
+        name = scenario.objects[name].parent
+    return name
 
 
 def _every(observer: Observer, every: int) -> StepHook:
