@@ -8,6 +8,7 @@ existing run or evaluation in OUT is reused, so use a fresh OUT for other settin
     uv run python tools/acceptance_optimize.py [--scenarios simple tools/generality/x.toml]
         [--seeds 0 1 2] [--samples 50] [--reference solved]
         [--workers 2 | --scheduler ADDRESS|local:N] [--budget default] [--out acceptance]
+        [--physics RANGES]   # the evaluations' second figure, as `rgmcad evaluate --physics`
 
 A scenario is a shipped name (scenarios/NAME.toml) or a path to a scenario file.
 
@@ -62,12 +63,15 @@ def main() -> None:
     parser.add_argument("--reference", default="solved",
                         help="the scenario's named layout to compare with (default: solved)")
     parser.add_argument("--out", default="acceptance")
+    parser.add_argument("--physics", default="default",
+                        help="the second figure's errors, as `rgmcad evaluate --physics` "
+                             "(e.g. position=0.002,heading=1: every part placed by hand too)")
     args = parser.parse_args()
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     common = (["--scheduler", args.scheduler] if args.scheduler
               else ["--workers", str(args.workers)])
-    evaluate = ["--samples", str(args.samples), "--seed", "0", *common]
+    evaluate = ["--samples", str(args.samples), "--seed", "0", "--physics", args.physics, *common]
 
     ref = args.reference
     for given in args.scenarios:
