@@ -158,3 +158,47 @@ def test_bad_hand_ranges_are_one_line_and_status_2(ranges):
     assert code == 2 and not out
     assert len(err.strip().splitlines()) == 1 and "--physics" in err
     assert ranges.split("=")[0] in err and "Traceback" not in err
+
+
+def _replay_start(page: Path) -> dict:
+    """{body: position} of the first frame of a replay page written by ``simulate --html``."""
+    text = page.read_text()
+    start = text.index('id="rgmcad-replay-data">') + len('id="rgmcad-replay-data">')
+    payload = json.loads(text[start:text.index("</script>", start)])
+    return {b["name"]: np.asarray(b["position"]) for b in payload["bodies"]}
+
+
+def test_simulate_replays_one_hand_placed_build(teapot, tmp_path):
+    ranges = "friction=0,mass=0,restitution=0,position=0.003,heading=1.5"
+    page = tmp_path / "built.html"
+    argv = ["simulate", "scenarios/teapot.toml", "--layout", "solved", "--json"]
+    code, out, err = _cli([*argv, "--physics", ranges, "--draw", "2", "--seed", "5",
+                           "--html", str(page)])
+    assert code in (0, 1) and not err, err
+    built = json.loads(out)
+    assert built["physics"] == {"ranges": HAND.to_json(), "seed": 5, "draw": 2}
+    # the replay starts where that draw's hand put every part, the simulation's own world
+    sc = teapot.scenario
+    values = values_from_mapping(sc, sc.layouts["solved"])
+    _, placed = _simulated_world(teapot, values, PhysicsDraw(HAND, 5, 2))
+    _, designed = _simulated_world(teapot, values, None)
+    shown = _replay_start(page)
+    assert shown.keys() == placed.keys()
+    for name, position in shown.items():
+        np.testing.assert_allclose(position, placed[name][:3, 3], atol=1e-9)
+    assert sum(np.linalg.norm(shown[n] - designed[n][:3, 3]) > 5e-4 for n in shown) >= 5
+    # the same draw is the same build; the summary names it in words
+    code, out, _ = _cli([*argv, "--physics", ranges, "--draw", "2", "--seed", "5"])
+    assert json.loads(out)["events"] == built["events"]
+    code, out, _ = _cli(argv[:-1] + ["--physics", ranges, "--draw", "2", "--seed", "5"])
+    assert "draw 2 (seed 5)" in out and "every part within +-3 mm and +-1.5 deg" in out
+
+
+@pytest.mark.parametrize("argv", [["--draw", "1"], ["--seed", "3"],
+                                  ["--physics", "position=0.002", "--draw", "-1"],
+                                  ["--physics", "heading=99"]])
+def test_bad_simulate_draws_are_one_line_and_status_2(argv):
+    code, out, err = _cli(["simulate", RAMP, "--layout", "central", *argv])
+    assert code == 2 and not out
+    assert len(err.strip().splitlines()) == 1 and "Traceback" not in err
+    assert any(flag in err for flag in ("--draw", "--seed", "--physics"))

@@ -1,12 +1,13 @@
 """The flags of physical uncertainty shared by ``evaluate``, ``optimize`` and ``benchmark``:
-``--physics RANGES`` (and ``optimize --robustness N``), read and printed."""
+``--physics RANGES`` (and ``optimize --robustness N``), read and printed; ``simulate``'s one
+draw of them."""
 
 from __future__ import annotations
 
 import argparse
 
-__all__ = ["add_physics_arg", "add_robustness_arg", "physics_arg", "robustness_arg",
-           "robustness_options", "robustness_lines"]
+__all__ = ["add_physics_arg", "add_physics_draw_args", "add_robustness_arg", "physics_arg",
+           "physics_draw_arg", "robustness_arg", "robustness_options", "robustness_lines"]
 
 _HELP = ("physical errors of the second rho_g: 'default' (friction +-20 %%, mass +-10 %%, "
          "restitution +-20 %%), KEY=VALUE,... (e.g. friction=0.3,mass=0.05; unnamed keys keep "
@@ -16,6 +17,39 @@ _HELP = ("physical errors of the second rho_g: 'default' (friction +-20 %%, mass
 
 def add_physics_arg(p: argparse.ArgumentParser) -> None:
     p.add_argument("--physics", default="default", metavar="RANGES", help=_HELP)
+
+
+def add_physics_draw_args(p: argparse.ArgumentParser) -> None:
+    """``simulate``'s ``--physics RANGES --draw K --seed S``: one run under one draw."""
+    p.add_argument("--physics", default="off", metavar="RANGES", help="simulate under one "
+                   "draw of physical errors: 'default' (friction +-20 %%, mass +-10 %%, "
+                   "restitution +-20 %%), KEY=VALUE,... (e.g. friction=0,mass=0,restitution=0,"
+                   "position=0.002,heading=1: every part placed by a hand, up to +-2 mm and +-1 "
+                   "degree) or 'off' (default: the layout as designed)")
+    p.add_argument("--draw", type=int, default=None, metavar="K", help="which draw of "
+                   "--physics, 0 to 2^32-1 (default 0); another K, another build")
+    p.add_argument("--seed", type=int, default=None, help="seed of the --physics draws, "
+                   "0 to 2^32-1 (default 0)")
+
+
+def physics_draw_arg(args):
+    """``--physics``, ``--draw`` and ``--seed`` as a :class:`~rgmcad.scene.perturbation.
+    PhysicsDraw` (None for 'off'; --draw or --seed without errors to draw: UsageError)."""
+    from rgmcad.errors import UsageError
+    from rgmcad.runs.checks import MAX_SEED, check_range
+    from rgmcad.scene.perturbation import PhysicsDraw
+
+    ranges = physics_arg(args)
+    if ranges is None:
+        for flag, value in (("--draw", args.draw), ("--seed", args.seed)):
+            if value is not None:
+                raise UsageError(flag, "", "draws physical errors, but --physics is 'off': "
+                                 "expected --physics RANGES too")
+        return None
+    draw = check_range(0 if args.draw is None else args.draw, 0, MAX_SEED, "--draw",
+                       "a draw number")
+    seed = check_range(0 if args.seed is None else args.seed, 0, MAX_SEED, "--seed", "a seed")
+    return PhysicsDraw(ranges, seed, draw)
 
 
 def add_robustness_arg(p: argparse.ArgumentParser) -> None:

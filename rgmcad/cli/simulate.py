@@ -15,6 +15,7 @@ from rgmcad.cli.common import (
     say,
 )
 from rgmcad.cli.paths import finite, output_file, pixels
+from rgmcad.cli.physics import add_physics_draw_args, physics_draw_arg
 
 VIDEO_FPS = 30.0
 VIDEO_SUFFIXES = (".mp4", ".gif")
@@ -39,6 +40,7 @@ def configure(p) -> None:
     p.add_argument("--speed", type=finite, default=0.25, help="video playback speed against "
                    "real time, 0.01 to 4 (default 0.25: a domino falls in a tenth of a second)")
     p.add_argument("--labels", action="store_true", help="write the parts' names in the video")
+    add_physics_draw_args(p)
 
 
 def run(args) -> int:
@@ -54,6 +56,7 @@ def run(args) -> int:
             raise UsageError("--speed", "", f"expected 0.01 to 4, got {args.speed:g}")
     if args.html:
         output_file(args.html, "--html", (".html", ".htm"))
+    physics = physics_draw_arg(args)
     scenario = load_scenario_arg(args)
     if args.video:
         frames = video_frames(scenario.settings, VIDEO_FPS, args.speed)
@@ -66,14 +69,14 @@ def run(args) -> int:
     parts = load_parts_of(scenario, args)
     if args.video:
         result = record_video(scenario, values, parts, Path(args.video), VIDEO_FPS,
-                              args.width, args.height, args.speed, args.labels)
+                              args.width, args.height, args.speed, args.labels, physics)
     if args.html:
         from rgmcad.viewer.page import simulate_to_html
 
         result = simulate_to_html(scenario, values, parts, args.html,
-                                  title=f"{scenario.name}, layout {name}")
+                                  title=f"{scenario.name}, layout {name}", physics=physics)
     if not (args.video or args.html):
-        result = simulate(scenario, values, parts)
+        result = simulate(scenario, values, parts, physics=physics)
     if args.json:
         out = result.to_dict()
         out.update(scenario=scenario.name, layout=name,
@@ -83,9 +86,14 @@ def run(args) -> int:
             out["video"] = args.video
         if args.html:
             out["html"] = args.html
+        if physics is not None:
+            out["physics"] = {"ranges": physics.ranges.to_json(), "seed": physics.seed,
+                              "draw": physics.index}
         say(json.dumps(out))
         return 0 if result.outcome is Outcome.SUCCESS else 1
-    say(f"{scenario.name}, layout {name}")
+    say(f"{scenario.name}, layout {name}" + ("" if physics is None else
+        f", physical errors draw {physics.index} (seed {physics.seed}): "
+        f"{physics.ranges.describe()}"))
     if result.outcome is Outcome.INVALID:
         for o in result.validity.overlaps:
             say(f"  {o.first} by {o.depth * 1000:.2f} mm" if o.first.startswith("rope ")

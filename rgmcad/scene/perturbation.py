@@ -110,12 +110,14 @@ class PhysicsRanges:
         return self.position > 0.0 or self.heading > 0.0
 
     def describe(self) -> str:
-        text = (f"friction +-{self.friction:.0%}, mass +-{self.mass:.0%}, "
-                f"restitution +-{self.restitution:.0%}")
+        terms = []
+        if self.changes_physics:
+            terms.append(f"friction +-{self.friction:.0%}, mass +-{self.mass:.0%}, "
+                         f"restitution +-{self.restitution:.0%}")
         if self.moves_parts:
-            text += (f", every part within +-{self.position * 1000:g} mm and "
-                     f"+-{self.heading:g} deg of its place")
-        return text
+            terms.append(f"every part within +-{self.position * 1000:g} mm and "
+                         f"+-{self.heading:g} deg of its place")
+        return ", ".join(terms) or "none"
 
     def to_json(self) -> dict:
         """The ranges as JSON; a hand's ranges only when set (so runs and benchmark trials

@@ -319,12 +319,13 @@ def video_frames(settings, fps: float, speed: float = DEFAULT_SPEED) -> int:
 
 
 def record_video(scenario, values, parts, path: Path, fps: float, width: int, height: int,
-                 speed: float = DEFAULT_SPEED, show_labels: bool = False):
+                 speed: float = DEFAULT_SPEED, show_labels: bool = False, physics=None):
     """Simulate a layout and write a video of it (:func:`save_video`) played at ``speed``
     times real time (``fps`` adjusted so that a frame is a whole number of simulation
     steps), with the simulated time and the events overlaid; returns the
     :class:`~rgmcad.sim.run.SimulationResult`. Its frames are held in memory until then:
-    at most :func:`video_frames` of ``height * width * 3`` bytes."""
+    at most :func:`video_frames` of ``height * width * 3`` bytes. ``physics``: a
+    :class:`~rgmcad.scene.perturbation.PhysicsDraw` to simulate under (None: as designed)."""
     from rgmcad.scene.bodies import make_scene
     from rgmcad.sim.run import simulate
 
@@ -339,7 +340,8 @@ def record_video(scenario, values, parts, path: Path, fps: float, width: int, he
     every = _every(scenario.settings, fps, speed)
     fps = speed / (every * scenario.settings.timestep)  # a whole number of steps a frame
     try:
-        result = simulate(scenario, values, parts, observer=observer, observe_every=every)
+        result = simulate(scenario, values, parts, observer=observer, observe_every=every,
+                          physics=physics)
     finally:
         renderer.close()
     if not frames:

@@ -115,14 +115,15 @@ def write_replay_html(path: str | Path, replay: Replay) -> Path:
 
 
 def simulate_to_html(scenario, values, parts, path: str | Path, *, title: str | None = None,
-                     rate: float | None = None):
-    """Simulate a layout, recording it, and write its replay page to ``path``; returns the
+                     rate: float | None = None, physics=None):
+    """Simulate a layout (under ``physics``, a :class:`~rgmcad.scene.perturbation.PhysicsDraw`,
+    if given), recording it, and write its replay page to ``path``; returns the
     :class:`~rgmcad.sim.run.SimulationResult`. An invalid layout (not simulated) gets a page
     without a 3D view."""
     from rgmcad.viewer.recording import DEFAULT_RATE, record_replay
 
     result, replay = record_replay(scenario, values, parts, title=title,
-                                   rate=DEFAULT_RATE if rate is None else rate)
+                                   rate=DEFAULT_RATE if rate is None else rate, physics=physics)
     if replay is not None:
         write_replay_html(path, replay)
         return result
