@@ -79,5 +79,21 @@ def run(args) -> int:
     for (e, r, lo, hi), other in list(rows)[::3]:
         more = "" if other is None else f"     {other[1]:5.3f}   [{other[2]:.3f}, {other[3]:.3f}]"
         say(f"{e:5.3f}   {r:5.3f}   [{lo:.3f}, {hi:.3f}]{more}")
+    for fig, what in ((result, "placement errors"), (phys, "placement + physical errors")):
+        if fig is not None and (line := failures_line(fig["failures"]["close_in"])):
+            say(f"{what}, {line}")
     say(f"plot: {result['plot']}")
     return 0
+
+
+def failures_line(close_in: dict, most: int = 3) -> str | None:
+    """Where the layouts nearest the evaluated one failed first, the ``most`` commonest
+    events (None when all succeeded)."""
+    failed = close_in["failed"]
+    if not failed:
+        return None
+    n = close_in["layouts"]
+    shown = ", ".join(f"{name} {count}" for name, count in list(failed.items())[:most])
+    more = len(failed) - most
+    return (f"first failures within radius {close_in['radius']:g} ({sum(failed.values())} of "
+            f"{n} layouts): {shown}" + (f" and {more} more" if more > 0 else ""))

@@ -54,15 +54,19 @@ from rgmcad.runs.problem import SimRecord, simulate_layout_task
 from rgmcad.scene.perturbation import PhysicsDraw, PhysicsRanges
 from rgmcad.sim.run import Outcome
 
-__all__ = ["ETA", "EPS_GRID", "RobustnessCurve", "ball_samples", "wilson_interval",
-           "local_robustness", "robustness_on", "figures", "plot_curves", "trapezoid_weights",
-           "close_in_warning"]
+__all__ = ["ETA", "EPS_GRID", "CLOSE_IN", "RobustnessCurve", "ball_samples", "wilson_interval",
+           "local_robustness", "robustness_on", "figures", "failure_counts", "first_failure",
+           "plot_curves", "trapezoid_weights", "close_in_warning"]
 
 ETA = 1.0 / 300.0
 """Offset added to every radius (the authors' ``1 / (10 N_STEPS)``)."""
 
 EPS_GRID = np.linspace(0.0, 1.0, 30)
 """The authors' radii."""
+
+CLOSE_IN = 0.1
+"""Radius of the layouts whose failures tell a builder where to take care (10 % of every
+range): further out, failures say more about the design space than about the build."""
 
 
 @dataclass(frozen=True)
@@ -92,6 +96,9 @@ class RobustnessCurve:
     eta : float
     physics : RobustnessCurve or None
         The same layouts' curve under placement and physical errors, when asked for.
+    failed_at : tuple of str or None
+        Per simulated layout, radius by radius: the event it failed at first
+        (:func:`first_failure`), None for a success.
     """
 
     x: np.ndarray
@@ -108,6 +115,7 @@ class RobustnessCurve:
     validity_tests: int
     eta: float = ETA
     physics: RobustnessCurve | None = None
+    failed_at: tuple[str | None, ...] = ()
 
     def curve(self) -> list[list[float]]:
         """``[[eps, rho_l, low, high], ...]``."""
@@ -260,15 +268,18 @@ def robustness_on(executor, x, validity, samples: int, seed, physics=None,
 
 def figures(curve: RobustnessCurve, physics: PhysicsRanges | None = None) -> dict:
     """A curve as JSON: rho_g, its interval, the curve ``[[eps, rho_l, low, high], ...]``,
-    counts and simulations, and the same under ``physics`` (None when not estimated)."""
+    counts, simulations and where layouts failed (:func:`failure_counts`), and the same under
+    ``physics`` (None when not estimated)."""
     out = {"rho_g": curve.rho_g, "rho_g_interval": [curve.rho_g_low, curve.rho_g_high],
            "curve": curve.curve(), "counts": [int(c) for c in curve.counts],
-           "simulations": curve.simulations, "physics": None}
+           "simulations": curve.simulations, "failures": failure_counts(curve),
+           "physics": None}
     p = curve.physics
     if p is not None:
         out["physics"] = {"ranges": None if physics is None else physics.to_json(),
                           "rho_g": p.rho_g, "rho_g_interval": [p.rho_g_low, p.rho_g_high],
-                          "curve": p.curve(), "simulations": p.simulations}
+                          "curve": p.curve(), "simulations": p.simulations,
+                          "failures": failure_counts(p)}
     return out
 
 
@@ -305,7 +316,38 @@ def _curve(x, eps, sizes, records, n_tested, z, eta) -> RobustnessCurve:
         x=x, eps=eps, successes=succ, counts=counts, rho=rho, low=low, high=high,
         rho_g=rho_g, rho_g_low=max(0.0, rho_g - half), rho_g_high=min(1.0, rho_g + half),
         simulations=len(records), validity_tests=int(n_tested), eta=eta,
+        failed_at=tuple(first_failure(r) for r in records),
     )
+
+
+def first_failure(record: SimRecord) -> str | None:
+    """The event a failed simulation failed at first: the earliest event labelled a failure,
+    else (the run ended with events pending) the first never resolved in the scenario's order;
+    None for a success or an invalid layout."""
+    if record.outcome is not Outcome.FAILURE:
+        return None
+    failed = [(t, name) for name, (label, t) in record.events.items()
+              if label is False and t is not None]
+    if failed:
+        return min(failed)[1]
+    return next((name for name, (label, _) in record.events.items() if label is None), None)
+
+
+def failure_counts(curve: RobustnessCurve, within: float = CLOSE_IN) -> dict:
+    """Where the curve's layouts within radius ``within`` (eps <= within) and all of them
+    failed first: ``{"close_in": {"radius", "layouts", "failed": {event: count}}, "all":
+    {...}}``, events most frequent first."""
+    close = int(np.sum(np.asarray(curve.counts)[np.asarray(curve.eps) <= within + 1e-12]))
+    out = {}
+    for key, names in (("close_in", curve.failed_at[:close]), ("all", curve.failed_at)):
+        counts: dict[str, int] = {}
+        for name in names:
+            if name is not None:
+                counts[name] = counts.get(name, 0) + 1
+        out[key] = {"layouts": len(names),
+                    "failed": dict(sorted(counts.items(), key=lambda kv: (-kv[1], kv[0])))}
+    out["close_in"]["radius"] = within
+    return out
 
 
 def trapezoid_weights(t: np.ndarray) -> np.ndarray:
