@@ -53,6 +53,17 @@ TINY = LearningSettings(
 )
 
 
+def cli_output(argv) -> tuple[int, str, str]:
+    """``rgmcad ARGV`` in this process: its exit status, stdout and stderr."""
+    out, err = io.StringIO(), io.StringIO()
+    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+        try:
+            code = main(argv)
+        except SystemExit as e:  # argparse's own refusals
+            code = e.code
+    return code, out.getvalue(), err.getvalue()
+
+
 def run_cli(argv) -> tuple[int, dict | None]:
     """``rgmcad ARGV`` in this process: its exit status and its JSON output (None if none)."""
     out = io.StringIO()

@@ -8,7 +8,6 @@ line, and the same command resumes once a scheduler and workers are back."""
 from __future__ import annotations
 
 import contextlib
-import io
 import json
 import os
 import signal
@@ -20,8 +19,8 @@ from pathlib import Path
 
 import pytest
 
-from rgmcad.cli import main
 from rgmcad.runs.workflow import RunProgress
+from tests._support import cli_output
 
 distributed = pytest.importorskip("distributed")
 
@@ -33,15 +32,9 @@ SAME = ("vector", "probability", "event_probabilities", "simulations", "simulati
 # (estimators fitted in other processes pickle differently; their predictions are identical)
 
 
-def _cli(argv) -> tuple[int, str, str]:
-    out, err = io.StringIO(), io.StringIO()
-    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
-        code = main(argv)
-    return code, out.getvalue(), err.getvalue()
-
 
 def _optimize(run: Path, *extra) -> dict:
-    code, out, err = _cli(["optimize", SIMPLE, "--budget", "small", "--seed", "3", "--run",
+    code, out, err = cli_output(["optimize", SIMPLE, "--budget", "small", "--seed", "3", "--run",
                            str(run), "--json", *extra])
     assert code in (0, 1), err
     return json.loads(out)
@@ -105,7 +98,7 @@ def test_a_worker_of_another_version_is_refused_in_one_line(cluster, tmp_path):
         worker = sorted(client.scheduler_info()["workers"])[0]
         client.run(_set_version, "0.0.9-other", workers=[worker])
         try:
-            code, out, err = _cli(["evaluate", SIMPLE, "--layout", "initial", "--samples", "1",
+            code, out, err = cli_output(["evaluate", SIMPLE, "--layout", "initial", "--samples", "1",
                                    "--scheduler", cluster.scheduler_address,
                                    "--out", str(tmp_path / "p.png")])
         finally:
@@ -159,7 +152,7 @@ def test_a_scheduler_of_another_version_is_refused_in_one_line(tmp_path):
     scheduler = _start(["scheduler", "--host", "127.0.0.1", "--port", str(port),
                         "--no-dashboard", "--preload", str(tmp_path / "other.py")], tmp_path)
     try:
-        code, out, err = _cli(["evaluate", SIMPLE, "--layout", "initial", "--samples", "1",
+        code, out, err = cli_output(["evaluate", SIMPLE, "--layout", "initial", "--samples", "1",
                                "--scheduler", f"tcp://127.0.0.1:{port}",
                                "--out", str(tmp_path / "p.png")])
     finally:
@@ -194,7 +187,7 @@ def test_a_scheduler_killed_mid_run_stops_it_in_one_line_and_it_resumes(serial, 
     assert len(errors) == 1 and "run the same command again" in errors[0], err
     assert 40 <= journal.read_text().count("\n") < serial["simulations"]
     with _machines(port, tmp_path):  # both back; the same command, here to save a start-up
-        code, out, err = _cli(command[3:])
+        code, out, err = cli_output(command[3:])
     assert code in (0, 1), err
     got = json.loads(out)
     assert got["replayed"] >= 40

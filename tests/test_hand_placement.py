@@ -2,20 +2,18 @@
 the layout with each hand-placed part moved within the stated ranges in its parent's frame,
 never two parts pushed into each other, joints never torn apart."""
 
-import contextlib
-import io
 import json
 from pathlib import Path
 
 import numpy as np
 import pytest
 
-from rgmcad.cli import main
 from rgmcad.runs.problem import ScenarioContext
 from rgmcad.scene.design_space import values_from_mapping, world_poses
 from rgmcad.scene.perturbation import PhysicsDraw, PhysicsRanges, hand_placed_objects
 from rgmcad.sim.run import simulate
 from rgmcad.sim.validity import check_validity
+from tests._support import cli_output
 
 RAMP = str(Path(__file__).parent / "data" / "ramp.toml")
 HAND = PhysicsRanges(friction=0, mass=0, restitution=0, position=0.003, heading=1.5)
@@ -129,32 +127,23 @@ def test_parts_pushed_into_each_other_are_drawn_again_until_none_are(teapot):
         assert check_validity(scene).valid
 
 
-def _cli(argv):
-    out, err = io.StringIO(), io.StringIO()
-    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
-        try:
-            code = main(argv)
-        except SystemExit as e:
-            code = e.code
-    return code, out.getvalue(), err.getvalue()
-
 
 def test_evaluate_with_every_part_placed_by_hand(tmp_path):
     argv = ["evaluate", RAMP, "--layout", "central", "--samples", "1", "--workers", "1",
             "--out", str(tmp_path / "r.png")]
-    code, out, _ = _cli([*argv, "--json", "--physics", "position=0.002,heading=1"])
+    code, out, _ = cli_output([*argv, "--json", "--physics", "position=0.002,heading=1"])
     assert code == 0
     ranges = json.loads(out)["physics"]["ranges"]
     assert ranges["position"] == 0.002 and ranges["heading"] == 1 and ranges["friction"] == 0.2
-    code, out, _ = _cli([*argv, "--physics", "position=0.002,heading=1"])
+    code, out, _ = cli_output([*argv, "--physics", "position=0.002,heading=1"])
     assert code == 0 and "every part within +-2 mm and +-1 deg" in out
-    code, out, _ = _cli([*argv, "--json"])  # the default: no hand's errors, none in the JSON
+    code, out, _ = cli_output([*argv, "--json"])  # the default: no hand's errors, none in the JSON
     assert "position" not in json.loads(out)["physics"]["ranges"]
 
 
 @pytest.mark.parametrize("ranges", ["position=0.5", "heading=-1", "heading=45", "position=x"])
 def test_bad_hand_ranges_are_one_line_and_status_2(ranges):
-    code, out, err = _cli(["evaluate", RAMP, "--layout", "central", "--physics", ranges])
+    code, out, err = cli_output(["evaluate", RAMP, "--layout", "central", "--physics", ranges])
     assert code == 2 and not out
     assert len(err.strip().splitlines()) == 1 and "--physics" in err
     assert ranges.split("=")[0] in err and "Traceback" not in err
@@ -172,7 +161,7 @@ def test_simulate_replays_one_hand_placed_build(teapot, tmp_path):
     ranges = "friction=0,mass=0,restitution=0,position=0.003,heading=1.5"
     page = tmp_path / "built.html"
     argv = ["simulate", "scenarios/teapot.toml", "--layout", "solved", "--json"]
-    code, out, err = _cli([*argv, "--physics", ranges, "--draw", "2", "--seed", "5",
+    code, out, err = cli_output([*argv, "--physics", ranges, "--draw", "2", "--seed", "5",
                            "--html", str(page)])
     assert code in (0, 1) and not err, err
     built = json.loads(out)
@@ -188,9 +177,9 @@ def test_simulate_replays_one_hand_placed_build(teapot, tmp_path):
         np.testing.assert_allclose(position, placed[name][:3, 3], atol=1e-9)
     assert sum(np.linalg.norm(shown[n] - designed[n][:3, 3]) > 5e-4 for n in shown) >= 5
     # the same draw is the same build; the summary names it in words
-    code, out, _ = _cli([*argv, "--physics", ranges, "--draw", "2", "--seed", "5"])
+    code, out, _ = cli_output([*argv, "--physics", ranges, "--draw", "2", "--seed", "5"])
     assert json.loads(out)["events"] == built["events"]
-    code, out, _ = _cli(argv[:-1] + ["--physics", ranges, "--draw", "2", "--seed", "5"])
+    code, out, _ = cli_output(argv[:-1] + ["--physics", ranges, "--draw", "2", "--seed", "5"])
     assert "draw 2 (seed 5)" in out and "every part within +-3 mm and +-1.5 deg" in out
 
 
@@ -198,7 +187,7 @@ def test_simulate_replays_one_hand_placed_build(teapot, tmp_path):
                                   ["--physics", "position=0.002", "--draw", "-1"],
                                   ["--physics", "heading=99"]])
 def test_bad_simulate_draws_are_one_line_and_status_2(argv):
-    code, out, err = _cli(["simulate", RAMP, "--layout", "central", *argv])
+    code, out, err = cli_output(["simulate", RAMP, "--layout", "central", *argv])
     assert code == 2 and not out
     assert len(err.strip().splitlines()) == 1 and "Traceback" not in err
     assert any(flag in err for flag in ("--draw", "--seed", "--physics"))

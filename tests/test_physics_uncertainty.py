@@ -1,8 +1,6 @@
 """Robustness to physics, not only to placement: a block that must slide off a tilted board
 (it slides only while tan(slope) exceeds the friction between block and board)."""
 
-import contextlib
-import io
 import json
 import subprocess
 import sys
@@ -11,7 +9,6 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from rgmcad.cli import main
 from rgmcad.errors import UsageError
 from rgmcad.runs.problem import ScenarioContext
 from rgmcad.runs.robustness import local_robustness
@@ -19,6 +16,7 @@ from rgmcad.scene.bodies import make_scene
 from rgmcad.scene.design_space import values_from_mapping, vector_from_values
 from rgmcad.scene.perturbation import DEFAULT_PHYSICS, PhysicsDraw, PhysicsRanges
 from rgmcad.sim.world import World
+from tests._support import cli_output
 
 RAMP = str(Path(__file__).parent / "data" / "ramp.toml")
 # friction 1.0 x 0.5 = 0.5: the block slides above atan(0.5) = 26.6 degrees. At 30 degrees it
@@ -117,15 +115,9 @@ def test_a_heavier_block_has_the_inertia_of_a_heavier_block(ramp):
     assert f1 / f0 == pytest.approx(friction, rel=1e-6)
 
 
-def _evaluate(argv):
-    out, err = io.StringIO(), io.StringIO()
-    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
-        code = main(argv)
-    return code, out.getvalue(), err.getvalue()
-
 
 def test_evaluate_reports_both_robustness_figures(tmp_path):
-    code, out, _ = _evaluate(["evaluate", RAMP, "--layout", "central", "--samples", "1",
+    code, out, _ = cli_output(["evaluate", RAMP, "--layout", "central", "--samples", "1",
                               "--workers", "1", "--out", str(tmp_path / "r.png"), "--json",
                               "--physics", "friction=0.3,mass=0.05"])
     result = json.loads(out)
@@ -135,7 +127,7 @@ def test_evaluate_reports_both_robustness_figures(tmp_path):
     assert phys["simulations"] == result["simulations"] == sum(result["counts"])
     low, high = phys["rho_g_interval"]
     assert low <= phys["rho_g"] <= high and len(phys["curve"]) == len(result["curve"])
-    code, out, _ = _evaluate(["evaluate", RAMP, "--layout", "central", "--samples", "1",
+    code, out, _ = cli_output(["evaluate", RAMP, "--layout", "central", "--samples", "1",
                               "--workers", "1", "--out", str(tmp_path / "r.png"), "--json",
                               "--physics", "off"])
     assert json.loads(out)["physics"] is None
@@ -145,7 +137,7 @@ def test_evaluate_reports_both_robustness_figures(tmp_path):
 @pytest.mark.parametrize("ranges", ["friction=2", "mass=-0.1", "mass=abc", "gravity=0.1",
                                     "friction", ""])
 def test_bad_physics_ranges_are_one_line_and_status_2(ranges):
-    code, out, err = _evaluate(["evaluate", RAMP, "--layout", "edge", "--physics", ranges])
+    code, out, err = cli_output(["evaluate", RAMP, "--layout", "edge", "--physics", ranges])
     assert code == 2 and not out
     assert len(err.strip().splitlines()) == 1 and "--physics" in err and "Traceback" not in err
 
@@ -158,7 +150,7 @@ def test_bad_ranges_in_settings_name_the_key():
 
 
 def test_optimize_reports_both_robustness_figures(tmp_path):
-    code, out, _ = _evaluate(["optimize", RAMP, "--budget", "small", "--robustness", "1",
+    code, out, _ = cli_output(["optimize", RAMP, "--budget", "small", "--robustness", "1",
                               "--workers", "1", "--run", str(tmp_path / "run"), "--json"])
     robustness = json.loads(out)["robustness"]
     assert code == 0 and robustness["samples_per_radius"] == 1
@@ -168,7 +160,7 @@ def test_optimize_reports_both_robustness_figures(tmp_path):
     report = (tmp_path / "run" / "report.md").read_text()
     assert "placement errors" in report and "placement plus physical errors" in report
     # the summary a person reads counts the estimate's simulations apart from the run's
-    code, out, _ = _evaluate(["optimize", RAMP, "--budget", "small", "--robustness", "1",
+    code, out, _ = cli_output(["optimize", RAMP, "--budget", "small", "--robustness", "1",
                               "--workers", "1", "--run", str(tmp_path / "run")])
     estimate = robustness["simulations"] + robustness["physics"]["simulations"]
     assert code == 0 and estimate == 2 * 30
@@ -178,7 +170,7 @@ def test_optimize_reports_both_robustness_figures(tmp_path):
 @pytest.mark.parametrize("argv, flag", [
     (["--robustness", "-1"], "--robustness"), (["--physics", "mass=1"], "--physics")])
 def test_optimize_refuses_bad_robustness_flags_before_simulating(tmp_path, argv, flag):
-    code, out, err = _evaluate(["optimize", RAMP, "--budget", "small", "--run",
+    code, out, err = cli_output(["optimize", RAMP, "--budget", "small", "--run",
                                 str(tmp_path / "run"), *argv])
     assert code == 2 and not out and len(err.strip().splitlines()) == 1 and flag in err
     assert not (tmp_path / "run" / "simulations.jsonl").exists()
@@ -188,10 +180,10 @@ def test_learning_with_physical_noise_labels_edge_layouts_as_a_real_table_would(
     run = tmp_path / "noisy"
     argv = ["optimize", RAMP, "--budget", "small", "--robustness", "0", "--workers", "1",
             "--run", str(run)]
-    code, out, _ = _evaluate([*argv, "--physics-noise", "--physics", "friction=0.3"])
+    code, out, _ = cli_output([*argv, "--physics-noise", "--physics", "friction=0.3"])
     assert code in (0, 1) and "physics_noise" in json.loads((run / "settings.json").read_text())
     rows = [json.loads(line) for line in (run / "simulations.jsonl").read_text().splitlines()]
     flipped = [r for r in rows if ramp.simulate_one(r["vector"]).outcome.value != r["outcome"]]
     assert flipped and len(flipped) < len(rows) / 2  # noisy near the edge, not everywhere
-    code, _, err = _evaluate(argv)  # the same directory without noise: another run
+    code, _, err = cli_output(argv)  # the same directory without noise: another run
     assert code == 2 and len(err.strip().splitlines()) == 1

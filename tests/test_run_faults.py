@@ -6,7 +6,6 @@ directory, and flags or places that cannot work, refused before any simulation."
 from __future__ import annotations
 
 import contextlib
-import io
 import json
 import logging
 import os
@@ -20,12 +19,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from rgmcad.cli import main
 from rgmcad.errors import RunDirectoryError, UsageError
 from rgmcad.runs.executor import PoolExecutor, parent_only
 from rgmcad.runs.store import REJECTED, RESULT, SETTINGS, SIMULATIONS, RunStore, run_identity
 from rgmcad.runs.workflow import evaluate_layout, optimize_scenario
-from tests._support import TINY
+from tests._support import TINY, cli_output
 
 ROOT = Path(__file__).resolve().parent.parent
 SIMPLE = "scenarios/simple.toml"
@@ -35,12 +33,6 @@ def _optimize(run, **changes):
     return optimize_scenario(SIMPLE, **{"seed": 3, "budget": "small", "settings": TINY,
                                         "run_dir": run, "workers": 1, **changes})
 
-
-def _cli(argv) -> tuple[int, str, str]:
-    out, err = io.StringIO(), io.StringIO()
-    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
-        code = main(argv)
-    return code, out.getvalue(), err.getvalue()
 
 
 # --- kill -9 ---------------------------------------------------------------------------------
@@ -341,7 +333,7 @@ def test_a_run_directory_without_its_settings_is_refused_not_remade(tiny_run, tm
     with pytest.raises(RunDirectoryError, match="settings.json: missing, but the directory"):
         _optimize(run)
     assert not (run / SETTINGS).exists()
-    code, _, err = _cli(["optimize", SIMPLE, "--budget", "small", "--run", str(run)])
+    code, _, err = cli_output(["optimize", SIMPLE, "--budget", "small", "--run", str(run)])
     assert code == 2 and len(err.strip().splitlines()) == 1 and "settings.json" in err
 
 
@@ -388,7 +380,7 @@ def no_simulation(monkeypatch):
     (["evaluate", SIMPLE, "--layout", "solved", "--seed", "-5"], "--seed"),
 ])
 def test_numbers_out_of_range_are_one_line_naming_the_flag(argv, named, no_simulation):
-    code, out, err = _cli(argv)
+    code, out, err = cli_output(argv)
     assert code == 2 and not out
     assert len(err.strip().splitlines()) == 1 and named in err and " to " in err
 
@@ -410,7 +402,7 @@ def _unusable(tmp_path) -> dict[str, Path]:
 @pytest.mark.parametrize("case", ["under a file", "a file", "a NUL byte"])
 def test_optimize_refuses_a_run_directory_it_cannot_use(tmp_path, case, no_simulation):
     run = {**_unusable(tmp_path), "a NUL byte": tmp_path / "a\0b"}[case]
-    code, out, err = _cli(["optimize", SIMPLE, "--budget", "small", "--run", str(run)])
+    code, out, err = cli_output(["optimize", SIMPLE, "--budget", "small", "--run", str(run)])
     assert code == 2 and not out
     assert len(err.strip().splitlines()) == 1 and "--run" in err
     # the library, without the command's checks, refuses it too (it tries, as root as well)
@@ -435,7 +427,7 @@ def read_only_folder(tmp_path):
 @NOT_ROOT
 def test_optimize_refuses_a_read_only_run_directory(read_only_folder, no_simulation):
     run = read_only_folder
-    code, _, err = _cli(["optimize", SIMPLE, "--budget", "small", "--run", str(run)])
+    code, _, err = cli_output(["optimize", SIMPLE, "--budget", "small", "--run", str(run)])
     assert code == 2 and len(err.strip().splitlines()) == 1 and "--run" in err
     with pytest.raises(RunDirectoryError, match="Permission denied"):  # the library tries
         RunStore(run, run_identity("s", "0" * 64, 0, TINY))
@@ -450,7 +442,7 @@ def test_evaluate_refuses_a_plot_it_cannot_write_before_simulating(tmp_path, cas
            "in no folder": tmp_path / "missing" / "rob.png",
            "a folder": tmp_path, "unknown format": tmp_path / "rob.xyz",
            "a NUL byte": tmp_path / "r\0b.png"}[case]
-    code, printed, err = _cli(["evaluate", SIMPLE, "--layout", "solved", "--out", str(out)])
+    code, printed, err = cli_output(["evaluate", SIMPLE, "--layout", "solved", "--out", str(out)])
     assert code == 2 and not printed
     assert len(err.strip().splitlines()) == 1 and "--out" in err
     with pytest.raises(UsageError, match="plot"):  # the library checks its plot too
@@ -459,6 +451,6 @@ def test_evaluate_refuses_a_plot_it_cannot_write_before_simulating(tmp_path, cas
 
 @NOT_ROOT
 def test_evaluate_refuses_a_read_only_folder_for_its_plot(read_only_folder, no_simulation):
-    code, _, err = _cli(["evaluate", SIMPLE, "--layout", "solved", "--out",
+    code, _, err = cli_output(["evaluate", SIMPLE, "--layout", "solved", "--out",
                          str(read_only_folder / "rob.png")])
     assert code == 2 and len(err.strip().splitlines()) == 1 and "--out" in err

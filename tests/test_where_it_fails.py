@@ -1,19 +1,17 @@
 """Where a layout's copies fail: ``evaluate`` names the event each failed copy failed at
 first, so that a builder knows which step to build with care."""
 
-import contextlib
-import io
 import json
 from pathlib import Path
 
 import pytest
 
-from rgmcad.cli import main
 from rgmcad.runs.problem import ScenarioContext
 from rgmcad.runs.robustness import CLOSE_IN, first_failure
 from rgmcad.scene.design_space import values_from_mapping, vector_from_values
 from rgmcad.scene.perturbation import PhysicsDraw, PhysicsRanges
 from rgmcad.sim.run import Outcome
+from tests._support import cli_output
 
 RAMP = str(Path(__file__).parent / "data" / "ramp.toml")
 HAND = PhysicsRanges(friction=0, mass=0, restitution=0, position=0.002, heading=1)
@@ -49,18 +47,12 @@ def test_the_first_failure_is_where_the_chain_broke(teapot):
     assert failures >= 2
 
 
-def _cli(argv):
-    out, err = io.StringIO(), io.StringIO()
-    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
-        code = main(argv)
-    return code, out.getvalue(), err.getvalue()
-
 
 def test_evaluate_counts_every_failed_copy_once(tmp_path):
     # the block at the friction edge: placement errors never stop it, +-20 % friction does
     argv = ["evaluate", RAMP, "--layout", "edge", "--samples", "8", "--workers", "1",
             "--out", str(tmp_path / "r.png")]
-    code, out, _ = _cli([*argv, "--json"])
+    code, out, _ = cli_output([*argv, "--json"])
     assert code == 0
     result = json.loads(out)
     counts = result["counts"]  # the same layouts under both kinds of error
@@ -74,7 +66,7 @@ def test_evaluate_counts_every_failed_copy_once(tmp_path):
         assert set(everywhere["failed"]) <= {"block_lands"}
     assert result["failures"]["close_in"]["failed"] == {}
     assert result["physics"]["failures"]["close_in"]["failed"]["block_lands"] > 0
-    code, out, _ = _cli(argv)
+    code, out, _ = cli_output(argv)
     lines = [line for line in out.splitlines() if "first failures" in line]
     assert len(lines) == 1 and lines[0].startswith("placement + physical errors")
     assert "block_lands" in lines[0]
