@@ -70,3 +70,21 @@ def test_evaluate_counts_every_failed_copy_once(tmp_path):
     lines = [line for line in out.splitlines() if "first failures" in line]
     assert len(lines) == 1 and lines[0].startswith("placement + physical errors")
     assert "block_lands" in lines[0]
+
+
+def test_the_run_report_names_where_layouts_near_the_result_failed(tmp_path):
+    run = tmp_path / "run"
+    code, _, _ = cli_output(["optimize", RAMP, "--budget", "small", "--robustness", "4",
+                             "--workers", "1", "--run", str(run), "--physics", "friction=0.6"])
+    assert code == 0
+    robustness = json.loads((run / "result.json").read_text())["robustness"]
+    report = (run / "report.md").read_text()
+    for fig, what in ((robustness, "placement errors"),
+                      (robustness["physics"], "placement plus physical errors")):
+        failed = fig["failures"]["close_in"]["failed"]
+        lines = [line for line in report.splitlines()
+                 if line.startswith(f"- under {what}, first failures")]
+        if failed:  # the block stays on the board when friction is up
+            assert len(lines) == 1 and f"block_lands {failed['block_lands']}" in lines[0]
+        else:
+            assert not lines

@@ -69,7 +69,7 @@ def run(args) -> int:
         low, high = phys["rho_g_interval"]
         say(f"  rho_g = {phys['rho_g']:.3f} [{low:.3f}, {high:.3f}] under placement plus "
             f"physical errors ({physics.describe()})")
-    from rgmcad.runs.robustness import close_in_warning
+    from rgmcad.runs.robustness import close_in_warning, failures_line
 
     if warning := close_in_warning(result):
         say(f"warning: {warning}")
@@ -85,15 +85,3 @@ def run(args) -> int:
     say(f"plot: {result['plot']}")
     return 0
 
-
-def failures_line(close_in: dict, most: int = 3) -> str | None:
-    """Where the layouts nearest the evaluated one failed first, the ``most`` commonest
-    events (None when all succeeded)."""
-    failed = close_in["failed"]
-    if not failed:
-        return None
-    n = close_in["layouts"]
-    shown = ", ".join(f"{name} {count}" for name, count in list(failed.items())[:most])
-    more = len(failed) - most
-    return (f"first failures within radius {close_in['radius']:g} ({sum(failed.values())} of "
-            f"{n} layouts): {shown}" + (f" and {more} more" if more > 0 else ""))

@@ -13,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
-from rgmcad.runs.robustness import close_in_warning
+from rgmcad.runs.robustness import close_in_warning, failures_line
 from rgmcad.scene.perturbation import PhysicsRanges
 
 __all__ = ["REPORT_FILE", "SLICE_PLOT", "PROGRESS_PLOT", "ROBUSTNESS_PLOT", "ERROR_GRID",
@@ -124,6 +124,9 @@ def _robustness_lines(r: dict | None) -> list[str]:
         ranges = PhysicsRanges(**p["ranges"]).describe()
         out.append(f"- rho_g under placement plus physical errors ({ranges}): "
                    f"**{p['rho_g']:.3f}** [{low:.3f}, {high:.3f}]")
+    for fig, what in ((r, "placement errors"), (p, "placement plus physical errors")):
+        if fig and fig.get("failures") and (line := failures_line(fig["failures"]["close_in"])):
+            out.append(f"- under {what}, {line}")
     warning = close_in_warning(r, point_to_evaluate=True)
     return out + ([f"- **warning**: {warning}"] if warning else [])
 

@@ -56,7 +56,7 @@ from rgmcad.sim.run import Outcome
 
 __all__ = ["ETA", "EPS_GRID", "CLOSE_IN", "RobustnessCurve", "ball_samples", "wilson_interval",
            "local_robustness", "robustness_on", "figures", "failure_counts", "first_failure",
-           "plot_curves", "trapezoid_weights", "close_in_warning"]
+           "failures_line", "plot_curves", "trapezoid_weights", "close_in_warning"]
 
 ETA = 1.0 / 300.0
 """Offset added to every radius (the authors' ``1 / (10 N_STEPS)``)."""
@@ -348,6 +348,19 @@ def failure_counts(curve: RobustnessCurve, within: float = CLOSE_IN) -> dict:
                     "failed": dict(sorted(counts.items(), key=lambda kv: (-kv[1], kv[0])))}
     out["close_in"]["radius"] = within
     return out
+
+
+def failures_line(close_in: dict, most: int = 3) -> str | None:
+    """Where the layouts nearest the evaluated one failed first, the ``most`` commonest
+    events (None when all succeeded)."""
+    failed = close_in["failed"]
+    if not failed:
+        return None
+    n = close_in["layouts"]
+    shown = ", ".join(f"{name} {count}" for name, count in list(failed.items())[:most])
+    more = len(failed) - most
+    return (f"first failures within radius {close_in['radius']:g} ({sum(failed.values())} of "
+            f"{n} layouts): {shown}" + (f" and {more} more" if more > 0 else ""))
 
 
 def trapezoid_weights(t: np.ndarray) -> np.ndarray:
