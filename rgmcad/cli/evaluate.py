@@ -84,4 +84,3 @@ def run(args) -> int:
             say(f"{what}, {line}")
     say(f"plot: {result['plot']}")
     return 0
-
