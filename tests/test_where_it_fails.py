@@ -88,3 +88,11 @@ def test_the_run_report_names_where_layouts_near_the_result_failed(tmp_path):
             assert len(lines) == 1 and f"block_lands {failed['block_lands']}" in lines[0]
         else:
             assert not lines
+    # the browser report's table of events has the same counts, one column
+    page = (run / "report.html").read_text()
+    counts = [fig["failures"]["close_in"]["failed"].get("block_lands", 0)
+              for fig in (robustness, robustness["physics"])]
+    assert "failed first, of 12 layouts within 0.1" in page
+    table = page[page.index("<h2>Events</h2>"):]
+    row = table[table.index("<code>block_lands</code>"):]
+    assert row[:row.index("</tr>")].endswith(f"<td>{counts[0]} / {counts[1]}</td>")

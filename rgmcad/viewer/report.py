@@ -87,9 +87,25 @@ def _overview(s: dict, result) -> str:
             f"{escape(Path(s['layout']).name)}</a> (give it to <code>--layout</code>)</li></ul>")
 
 
+def _near_failures(s: dict) -> tuple[str, dict[str, str]]:
+    """(column header, {event: cell}) of where the layouts near the result failed first
+    (``optimize --robustness N``: within ``CLOSE_IN``, per kind of error); ("", {}) without."""
+    r = s.get("robustness") or {}
+    figs = [f["failures"]["close_in"] for f in (r, r.get("physics")) if f and f.get("failures")]
+    if not figs:
+        return "", {}
+    n, radius = figs[0]["layouts"], figs[0]["radius"]
+    kinds = "placement errors" + (" / + physical errors" if len(figs) > 1 else "")
+    header = f"failed first, of {n} layouts within {radius:g} ({kinds})"
+    cells = {name: " / ".join(str(f["failed"].get(name, 0)) for f in figs)
+             for name in s["event_probabilities"]}
+    return header, cells
+
+
 def _events(s: dict, result) -> str:
     rows = []
     simulated = {e.name: e for e in result.events}
+    near_header, near = _near_failures(s)
     for name, p in s["event_probabilities"].items():
         weakest = name == s["weakest_event"]
         f = s.get("factors", {}).get(name, {})
@@ -100,12 +116,14 @@ def _events(s: dict, result) -> str:
                     f"</code>{' (weakest link)' if weakest else ''}</td><td>{p:.3f}</td>"
                     f'<td style="text-align:left"><span class="bar" style="width:{p * 8:.2f}rem">'
                     f"</span></td><td>{escape(seen)}</td><td>{escape(str(f.get('model', '')))}"
-                    f"</td><td>{escape(', '.join(f.get('dims', [])) or '-')}</td></tr>")
+                    f"</td><td>{escape(', '.join(f.get('dims', [])) or '-')}</td>"
+                    + (f"<td>{near[name]}</td>" if near else "") + "</tr>")
     return ("<h2>Events</h2><p>Probability of each event given that the events it waits for "
             "happened, predicted by the learnt model at this layout; the run succeeds when "
             "all do. The weakest link is the one most likely to break the chain.</p>"
             "<table><tr><th>event</th><th>P(success | parents)</th><th></th>"
-            "<th>in the replay</th><th>model</th><th>depends on</th></tr>"
+            "<th>in the replay</th><th>model</th><th>depends on</th>"
+            + (f"<th>{escape(near_header)}</th>" if near else "") + "</tr>"
             + "".join(rows) + "</table>")
 
 
