@@ -74,8 +74,8 @@ def test_evaluate_counts_every_failed_copy_once(tmp_path):
 
 def test_the_run_report_names_where_layouts_near_the_result_failed(tmp_path):
     run = tmp_path / "run"
-    code, _, _ = cli_output(["optimize", RAMP, "--budget", "small", "--robustness", "4",
-                             "--workers", "1", "--run", str(run), "--physics", "friction=0.6"])
+    code, out, _ = cli_output(["optimize", RAMP, "--budget", "small", "--robustness", "4",
+                               "--workers", "1", "--run", str(run), "--physics", "friction=0.6"])
     assert code == 0
     robustness = json.loads((run / "result.json").read_text())["robustness"]
     report = (run / "report.md").read_text()
@@ -84,10 +84,13 @@ def test_the_run_report_names_where_layouts_near_the_result_failed(tmp_path):
         failed = fig["failures"]["close_in"]["failed"]
         lines = [line for line in report.splitlines()
                  if line.startswith(f"- under {what}, first failures")]
+        said = [line for line in out.splitlines() if line.startswith(
+            f"under {what.replace(' plus physical', ' + physical')}, first failures")]
         if failed:  # the block stays on the board when friction is up
             assert len(lines) == 1 and f"block_lands {failed['block_lands']}" in lines[0]
+            assert len(said) == 1 and said[0].endswith(lines[0].split(", ", 1)[1])
         else:
-            assert not lines
+            assert not lines and not said
     # the browser report's table of events has the same counts, one column
     page = (run / "report.html").read_text()
     counts = [fig["failures"]["close_in"]["failed"].get("block_lands", 0)

@@ -96,14 +96,18 @@ def estimate_simulations(summary: dict) -> int:
 
 
 def robustness_lines(summary: dict) -> list[str]:
-    """The run summary's two rho_g figures, one line each (none when not estimated)."""
+    """The run summary's two rho_g figures, one line each, then where layouts near it failed
+    first (none when not estimated)."""
+    from rgmcad.runs.robustness import close_in_warning, failures_line  # the CLI starts light
+
     r = summary.get("robustness") or {}
-    out = []
+    out, near = [], []
     for fig, what in ((r, "placement"), (r.get("physics"), "placement + physical")):
         if fig:
             low, high = fig["rho_g_interval"]
             out.append(f"rho_g under {what} errors: {fig['rho_g']:.3f} [{low:.3f}, {high:.3f}]")
-    from rgmcad.runs.robustness import close_in_warning  # not at start: the CLI starts light
-
+            if fig.get("failures") and (line := failures_line(fig["failures"]["close_in"])):
+                near.append(f"under {what} errors, {line}")
+    out += near
     warning = close_in_warning(r, point_to_evaluate=True)
     return out + ([f"warning: {warning}"] if warning else [])
