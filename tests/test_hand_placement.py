@@ -191,3 +191,16 @@ def test_bad_simulate_draws_are_one_line_and_status_2(argv):
     assert code == 2 and not out
     assert len(err.strip().splitlines()) == 1 and "Traceback" not in err
     assert any(flag in err for flag in ("--draw", "--seed", "--physics"))
+
+
+def test_a_video_shows_the_same_build_as_the_timeline(tmp_path):
+    argv = ["simulate", "scenarios/simple.toml", "--json"]
+    hand = ["--physics", "position=0.003,heading=1.5", "--draw", "3"]
+    times = {}
+    for key, extra in (("designed", []), ("built", hand),
+                       ("video", [*hand, "--video", str(tmp_path / "v.gif"), "--width", "32",
+                                  "--height", "24"])):
+        code, out, _ = cli_output([*argv, *extra])
+        times[key] = [e["time"] for e in json.loads(out)["events"]]
+    assert times["video"] == times["built"] != times["designed"]
+    assert (tmp_path / "v.gif").stat().st_size > 0
