@@ -673,6 +673,45 @@ def test_final_choice_prefers_the_layout_that_survives_placement_errors():
     assert wide.n_simulations == 1 + sum(c.n_valid for c in wide.candidates)
 
 
+
+class _Pinhole:
+    """The disc oracle, except where ``pin`` is exactly: a tie broken the wrong way there."""
+
+    def __init__(self, pin):
+        self.oracle, self.pin = disc_oracle(d=2), np.asarray(pin, dtype=float)
+
+    def validity(self, X):
+        return self.oracle.validity(X)
+
+    def simulate(self, X):
+        return [Label(lab.valid, False, {e: False for e in lab.events})
+                if np.array_equal(x, self.pin) else lab
+                for x, lab in zip(np.atleast_2d(X), self.oracle.simulate(X), strict=True)]
+
+
+def test_an_optimum_that_fails_where_it_stands_is_moved_by_a_hair():
+    # the optimum, the disc's centre, fails exactly there and nowhere else; the simulated
+    # successes lie near the disc's edge, where placement errors break them far more often
+    centre = [0.5, 0.5]
+    oracle = _Pinhole(centre)
+    X = np.array([[0.5, 0.78], [0.78, 0.5], [0.24, 0.5]])
+    settings = FAST.replace(verify_samples=64, error_radius=0.5, verify_candidates=4)
+    runs = [verify_layout(disc_model(), np.array(centre), X, oracle.simulate(X),
+                          oracle.simulate, oracle.validity, settings) for _ in range(2)]
+    v = runs[0]
+    assert v.optimum.outcome == "failure"
+    assert v.chosen.source.startswith("optimum moved by") and v.verified
+    assert 0 < np.linalg.norm(v.chosen.x - centre) <= 1 / 300
+    assert oracle.simulate(v.chosen.x[None])[0].success  # it works where it is placed
+    others = [c.success_rate for c in v.candidates if c is not v.chosen]
+    assert len(others) == 3 and v.chosen.success_rate > max(others)
+    assert v.n_simulations == 1 + 8 + sum(c.n_valid for c in v.candidates)
+    np.testing.assert_array_equal(runs[1].chosen.x, v.chosen.x)  # a resumed run: the same
+    # an optimum that fails all around (outside the disc) is not moved: a sample is returned
+    far = verify_layout(disc_model(), np.array([0.95, 0.95]), X, oracle.simulate(X),
+                        oracle.simulate, oracle.validity, settings)
+    assert far.chosen.source.startswith("simulated sample #")
+
 def test_final_choice_races_the_candidates_dropping_clear_losers_early():
     # the disc's centre, a point beside it, and two points at its edge, judged under ball
     # errors up to radius 0.5: the edge points are far worse (about 0.53 against 0.84)

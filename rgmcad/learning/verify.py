@@ -19,6 +19,10 @@ takes to order them. Of the candidates never dropped, the one with the highest s
 rate among its valid copies (per radius, then averaged over radii, for ball errors) wins;
 ties go to the earlier candidate, so the optimum first.
 
+An optimum that fails its own simulation is first moved, by at most 1/300 of the
+normalised space, to the nearest of a few layouts drawn there that succeeds (``_nudged``),
+which is then the first candidate; only when none does is the optimum left out.
+
 Start layouts (the user's own, ``starts``) that succeeded in their own simulation are always
 candidates, right after the optimum: the layout returned is then at least as good as the
 user's by this measure. With ``verify_samples = 0`` the choice is the
@@ -165,6 +169,10 @@ def verify_layout(
     own = simulate(x_opt[None, :])[0]
     optimum = Candidate(x_opt, "optimum", outcome(own))
     n_sims = 1
+    nudged = None
+    if not own.success and settings.verify_samples > 0:
+        nudged, n_nudges = _nudged(x_opt, simulate, validity)
+        n_sims += n_nudges
 
     d = len(x_opt)
     own_starts = _successful_starts(starts or {}, x_opt, X, labels, simulate)
@@ -176,8 +184,9 @@ def verify_layout(
                                   settings.placement_noise)
     order = (np.argsort(-expected_success(model, X[successes], rating), kind="stable")
              if successes else [])
-    n_alternatives = settings.verify_candidates - (1 if own.success else 0)
-    candidates = ([optimum] if own.success else []) + list(own_starts.candidates) + [
+    first = [optimum] if own.success else [nudged] if nudged is not None else []
+    n_alternatives = settings.verify_candidates - len(first)
+    candidates = first + list(own_starts.candidates) + [
         Candidate(X[successes[k]], f"simulated sample #{successes[k]}", "success")
         for k in order[: max(n_alternatives, 0)]
     ]
@@ -224,6 +233,46 @@ def verify_layout(
     winner = centre if centre.success_rate > before.success_rate else chosen
     return Verification(winner, True, optimum, tuple(tested), n_sims, centring, (before, centre),
                         n_sims - before_centring, stages)
+
+
+# An optimum can fail where it stands and succeed all around it (a symmetric tie-break, a
+# ball that grazes an edge): teapot seed 0's optimum failed its own simulation, so the paper's
+# rule left it out, yet it evaluates 0.609 against 0.541 for the layout returned instead, and
+# 14 of the 20 layouts within 1/300 of it succeed. So a failed optimum is moved, at most by
+# the smallest radius of rho_g (1/300 of the normalised space, a twentieth of a millimetre on
+# a 15 mm range), to the nearest of _NUDGES layouts drawn there that succeeds, and races as
+# the optimum would: the layout returned still succeeds where it is placed (docs/decisions.md,
+# "A failed optimum, moved by a hair").
+_NUDGES, _NUDGE_RADIUS, _NUDGE_STREAM = 8, 1.0 / 300.0, 0x4E55_4447
+
+
+def _nudged(x: np.ndarray, simulate, validity) -> tuple[Candidate | None, int]:
+    """The nearest to ``x`` of _NUDGES valid layouts uniform in the ball of radius
+    _NUDGE_RADIUS around it (inside the cube) that succeeds in its own simulation, as a
+    candidate (None when none does), and the simulations that took. The draws depend on
+    ``x`` alone: a resumed run draws the same."""
+    d = len(x)
+    rng = np.random.default_rng([_NUDGE_STREAM, *np.frombuffer(x.tobytes(), np.uint32)])
+    points = []
+    for _ in range(100):  # rejection: inside the cube
+        step = rng.standard_normal(d)
+        step *= _NUDGE_RADIUS * rng.random() ** (1.0 / d) / np.linalg.norm(step)
+        if np.all((x + step >= 0.0) & (x + step <= 1.0)):
+            points.append(x + step)
+            if len(points) == _NUDGES:
+                break
+    if not points:
+        return None, 0
+    P = np.vstack(points)
+    P = P[np.asarray(validity(P), dtype=bool)]
+    if not len(P):
+        return None, 0
+    won = [p for p, label in zip(P, simulate(P), strict=True) if label.success]
+    if not won:
+        return None, len(P)
+    best = min(won, key=lambda p: float(np.linalg.norm(p - x)))
+    moved = float(np.linalg.norm(best - x))
+    return Candidate(best, f"optimum moved by {moved:.4f}", "success"), len(P)
 
 
 # The final choice doubles the errors every candidate still in it meets (from 32 up to
