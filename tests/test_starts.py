@@ -26,7 +26,7 @@ from rgmcad.learning import (
 from tests._support import TINY, run_cli
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from test_learning import chain_oracle  # noqa: E402
+from test_learning import _Pinhole, chain_oracle, disc_model  # noqa: E402
 
 SMALL = LearningSettings(
     n_initial=64, n_successes=16, exploration_batch=8, exploration_max_iter=12,
@@ -109,6 +109,26 @@ def test_a_start_beats_fragile_candidates_and_ties_go_to_the_optimum():
     # a start that fails is no candidate
     failing = check([0.79, 0.5], {"bad": np.array([0.95, 0.95])})
     assert all(not c.source.startswith("start") for c in failing.candidates)
+
+
+def test_a_start_that_fails_where_it_stands_is_moved_by_a_hair():
+    # the user's layout is the disc's centre, which fails exactly there and nowhere else (a
+    # tie broken the wrong way): it races moved by at most 1/300, as a failed optimum would
+    oracle = _Pinhole([0.5, 0.5])
+    X = np.array([[0.5, 0.78], [0.78, 0.5]])
+    settings = SMALL.replace(verify_samples=64, error_radius=0.5, verify_candidates=3)
+    v = verify_layout(disc_model(), np.array([0.24, 0.5]), X, oracle.simulate(X),
+                      oracle.simulate, oracle.validity, settings, starts={"hand": np.full(2, 0.5)})
+    moved = [c for c in v.candidates if c.moved_from == "start layout 'hand'"]
+    assert len(moved) == 1 and moved[0].source.startswith("start layout 'hand' moved by")
+    assert 0 < np.linalg.norm(moved[0].x - 0.5) <= 1 / 300
+    assert oracle.simulate(moved[0].x[None])[0].success  # it works where it is placed
+    assert v.chosen is moved[0]  # the centre of the disc beats its edges
+    # the paper's choice (no race) moves nothing
+    plain = verify_layout(disc_model(), np.array([0.24, 0.5]), X, oracle.simulate(X),
+                          oracle.simulate, oracle.validity, settings.replace(verify_samples=0),
+                          starts={"hand": np.full(2, 0.5)})
+    assert not any(c.moved_from for c in (plain.chosen, *plain.candidates))
 
 
 def test_without_starts_the_exploration_is_the_papers_bit_for_bit():
@@ -214,3 +234,40 @@ def test_an_interrupted_run_from_a_start_resumes_to_the_same_result(tmp_path):
     # other starts, or none, are another run: this directory is refused for them
     with pytest.raises(RgmcadError, match="settings.json"):
         optimize_scenario(SIMPLE, seed=3, budget="small", settings=TINY, run_dir=run, workers=1)
+
+
+def test_a_start_that_fails_by_a_hair_in_simulation_is_moved_and_the_report_says_so(tmp_path):
+    # the user's layout sits on the edge of success (found by bisecting between `solved` and
+    # a failing layout); `optimize --start` races a layout within 1/300 of it that succeeds
+    from rgmcad.parts.store import DEFAULT_BUILD_DIR
+    from rgmcad.runs.problem import ScenarioProblem
+    from rgmcad.runs.starts import resolve_starts
+    from rgmcad.runs.workflow import optimize_scenario
+
+    problem = ScenarioProblem(SIMPLE, DEFAULT_BUILD_DIR)
+    names = [f.name for f in problem.scenario.free]
+    works = resolve_starts(problem.scenario, ["solved"])["solved"]
+    rng = np.random.default_rng(0)
+    fails = next(x for x in rng.random((50, len(names)))
+                 if problem.validity(x[None])[0] and not problem.simulate(x[None])[0].success)
+    for _ in range(14):
+        mid = (works + fails) / 2
+        assert problem.validity(mid[None])[0]
+        works, fails = (mid, fails) if problem.simulate(mid[None])[0].success else (works, mid)
+    edge = tmp_path / "edge.json"
+    edge.write_text(json.dumps({"values": dict(zip(names, map(float, problem.values(fails)),
+                                                   strict=True))}))
+    x = resolve_starts(problem.scenario, [str(edge)])["edge"]
+    assert not problem.simulate(x[None])[0].success  # as the user wrote it, it fails
+
+    run = optimize_scenario(SIMPLE, seed=0, settings=TINY, run_dir=tmp_path / "run", workers=1,
+                            starts=[str(edge)])
+    moved = [c for c in run.summary["verification"]
+             if c.get("moved_from") == "start layout 'edge'"]
+    assert len(moved) == 1
+    y = np.asarray(moved[0]["vector"])
+    assert 0 < np.linalg.norm(y - x) <= 1 / 300 and problem.simulate(y[None])[0].success
+    report = (tmp_path / "run" / "report.md").read_text()
+    assert "The start layout 'edge' failed its own simulation" in report
+    assert "The optimum failed" not in report or any(
+        c.get("moved_from") == "optimum" for c in run.summary["verification"])

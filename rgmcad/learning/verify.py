@@ -25,8 +25,10 @@ which is then the first candidate; only when none does is the optimum left out.
 
 Start layouts (the user's own, ``starts``) that succeeded in their own simulation are always
 candidates, right after the optimum: the layout returned is then at least as good as the
-user's by this measure. With ``verify_samples = 0`` the choice is the
-paper's: the optimum if it succeeds, else the best predicted simulated success.
+user's by this measure. A start that fails its own simulation is moved by a hair as the
+optimum is, and is a candidate if a layout that near it succeeds. With
+``verify_samples = 0`` the choice is the paper's: the optimum if it succeeds, else the best
+predicted simulated success.
 
 When ``settings.centering`` asks for it (by default: when the exploration found fewer
 than ``n_successes`` successes), the layout chosen is then centred by simulation
@@ -38,7 +40,7 @@ own simulation and its success rate is higher when both are simulated at
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -75,6 +77,9 @@ class Candidate:
     centered : bool
         Moved by the centring (:mod:`rgmcad.learning.centering`) from the layout ``source``
         names.
+    moved_from : str
+        Empty, or the candidate it replaces (``"optimum"``, ``"start layout 'NAME'"``),
+        which failed its own simulation: this one lies within 1/300 of it and succeeds.
     """
 
     x: np.ndarray
@@ -83,6 +88,7 @@ class Candidate:
     success_rate: float = float("nan")
     n_valid: int = 0
     centered: bool = False
+    moved_from: str = ""
 
 
 @dataclass(frozen=True)
@@ -175,7 +181,8 @@ def verify_layout(
         n_sims += n_nudges
 
     d = len(x_opt)
-    own_starts = _successful_starts(starts or {}, x_opt, X, labels, simulate)
+    own_starts = _successful_starts(starts or {}, x_opt, X, labels, simulate, validity,
+                                    nudge=settings.verify_samples > 0)
     n_sims += own_starts.n_simulations
     taken = [x_opt, *(c.x for c in own_starts.candidates)]
     successes = [i for i, lab in enumerate(labels)
@@ -226,8 +233,9 @@ def verify_layout(
     # 0.16 more robust below its start (docs/decisions.md, "Design centring")
     check = design_from_settings(d, settings, settings.centering_check_samples,
                                  settings.verify_noise)
-    before, centre = _raced([Candidate(chosen.x, chosen.source, chosen.outcome),
-                             Candidate(centring.x, chosen.source, "success", centered=True)],
+    before, centre = _raced([replace(chosen, success_rate=float("nan"), n_valid=0),
+                             replace(chosen, x=centring.x, outcome="success", centered=True,
+                                     success_rate=float("nan"), n_valid=0)],
                             check, simulate, validity, race=False)[0]
     n_sims += before.n_valid + centre.n_valid
     winner = centre if centre.success_rate > before.success_rate else chosen
@@ -246,11 +254,12 @@ def verify_layout(
 _NUDGES, _NUDGE_RADIUS, _NUDGE_STREAM = 8, 1.0 / 300.0, 0x4E55_4447
 
 
-def _nudged(x: np.ndarray, simulate, validity) -> tuple[Candidate | None, int]:
-    """The nearest to ``x`` of _NUDGES valid layouts uniform in the ball of radius
-    _NUDGE_RADIUS around it (inside the cube) that succeeds in its own simulation, as a
-    candidate (None when none does), and the simulations that took. The draws depend on
-    ``x`` alone: a resumed run draws the same."""
+def _nudged(x: np.ndarray, simulate, validity,
+            name: str = "optimum") -> tuple[Candidate | None, int]:
+    """The nearest to ``x`` (the candidate ``name``) of _NUDGES valid layouts uniform in
+    the ball of radius _NUDGE_RADIUS around it (inside the cube) that succeeds in its own
+    simulation, as a candidate (None when none does), and the simulations that took. The
+    draws depend on ``x`` alone: a resumed run draws the same."""
     d = len(x)
     rng = np.random.default_rng([_NUDGE_STREAM, *np.frombuffer(x.tobytes(), np.uint32)])
     points = []
@@ -272,7 +281,7 @@ def _nudged(x: np.ndarray, simulate, validity) -> tuple[Candidate | None, int]:
         return None, len(P)
     best = min(won, key=lambda p: float(np.linalg.norm(p - x)))
     moved = float(np.linalg.norm(best - x))
-    return Candidate(best, f"optimum moved by {moved:.4f}", "success"), len(P)
+    return Candidate(best, f"{name} moved by {moved:.4f}", "success", moved_from=name), len(P)
 
 
 # The final choice doubles the errors every candidate still in it meets (from 32 up to
@@ -342,8 +351,8 @@ def _raced(candidates, design, simulate, validity, race: bool = True, more=None
             alive = [c for c in alive if c == leader or valid[c].sum() < _DROP_MIN_VALID
                      or not _significantly_below(rates[leader] - rates[c], lead,
                                                  weights[c] * (wins[c] - rates[c]), done)]
-    tested = [Candidate(c.x, c.source, c.outcome, float(rates[i]), int(valid[i].sum()),
-                        c.centered) for i, c in enumerate(candidates)]
+    tested = [replace(c, success_rate=float(rates[i]), n_valid=int(valid[i].sum()))
+              for i, c in enumerate(candidates)]
     run = tuple(s for s in stages if s <= done) if race else ()
     return tested, n_sims, max(alive, key=lambda c: (rates[c], -c)), run
 
@@ -370,9 +379,10 @@ class _Starts:
     n_simulations: int
 
 
-def _successful_starts(starts, x_opt, X, labels, simulate) -> _Starts:
+def _successful_starts(starts, x_opt, X, labels, simulate, validity, nudge: bool) -> _Starts:
     """The start layouts that succeeded in their own simulation (looked up among the run's
-    samples, else simulated now), as candidates; one equal to the optimum is the optimum."""
+    samples, else simulated now), as candidates; one equal to the optimum is the optimum.
+    With ``nudge``, one that failed is moved by a hair as the optimum is (``_nudged``)."""
     found, missing = [], []
     for name, x in starts.items():
         x = np.asarray(x, dtype=float)
@@ -387,5 +397,13 @@ def _successful_starts(starts, x_opt, X, labels, simulate) -> _Starts:
     found += [(name, x, lab) for (name, x), lab in zip(missing, fresh, strict=True)]
     order = {name: k for k, name in enumerate(starts)}
     found.sort(key=lambda item: order[item[0]])
-    return _Starts(tuple(Candidate(x, f"start layout {name!r}", "success")
-                         for name, x, lab in found if lab.success), len(missing))
+    candidates, n_sims = [], len(missing)
+    for name, x, lab in found:
+        source = f"start layout {name!r}"
+        if lab.success:
+            candidates.append(Candidate(x, source, "success"))
+        elif nudge:
+            moved, n = _nudged(x, simulate, validity, source)
+            n_sims += n
+            candidates += [moved] if moved is not None else []
+    return _Starts(tuple(candidates), n_sims)

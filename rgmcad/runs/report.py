@@ -79,10 +79,10 @@ def report_markdown(scenario, s: dict, low, high) -> str:
                          "error_radius")) else "placement errors (Gaussian, standard "
                      f"deviation {s['verify_noise']:g} of each range)")
                   + _race_words(s.get("race_stages") or [], s.get("verify_samples"))
-                  + (" The optimum failed its own simulation, so the nearest of the few "
-                     "layouts drawn within 1/300 of it that succeeded took its place."
-                     if any(c["source"].startswith("optimum moved by")
-                            for c in s["verification"]) else ""), "",
+                  + "".join(f" The {c['moved_from']} failed its own simulation, "
+                            "so the nearest of the few layouts drawn within 1/300 of it that "
+                            "succeeded took its place." for c in s["verification"]
+                            if c.get("moved_from")), "",
                   "| candidate | success under errors | valid copies |",
                   "|---|---|---|"]
         for c in s["verification"]:

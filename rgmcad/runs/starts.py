@@ -114,5 +114,6 @@ def choose_layout(recorded, result, starts: dict[str, np.ndarray] | None = None,
                             if v.n_centering_simulations else {})},
             "centering": centering, "race_stages": list(v.race_stages),
             "candidates": [{"source": t.source, "vector": [float(u) for u in t.x],
-                            "success_rate": t.success_rate, "valid_copies": t.n_valid}
+                            "success_rate": t.success_rate, "valid_copies": t.n_valid,
+                            **({"moved_from": t.moved_from} if t.moved_from else {})}
                            for t in v.candidates]}
