@@ -100,6 +100,34 @@ def test_ours_sets_the_budget_and_every_baseline_is_paired_with_it(tmp_path):
     assert _without_times(again) == _without_times(table)
 
 
+def test_a_users_layouts_are_rows_paired_with_ours_under_the_same_errors(tmp_path):
+    # a maker compares their hand layout, and ours' own first layout given back as a file,
+    # with the method: each is evaluated under every trial's errors like the methods' layouts
+    out = tmp_path / "bench"
+    first = tmp_path / "mine.json"
+    kwargs = dict(methods=("ours",), trials=2, samples=1, ours_budget="small",
+                  ours_settings=TINY, workers=1)
+    run_benchmark(SIMPLE, out, **kwargs)
+    first.write_text((out / "ours" / "t0" / "layout.json").read_text())
+    table = run_benchmark(SIMPLE, out, references=["solved", str(first)], **kwargs)
+    ours, solved, mine = table["rows"]
+    assert (solved["label"], mine["label"]) == ("layout 'solved'", "layout 'mine'")
+    assert set(table["references"]) == {"solved", "mine"}
+    # the layout given back is evaluated exactly as ours' trial 0 was (common errors)
+    assert mine["rho_g"][0] == ours["rho_g"][0]
+    assert mine["physics_rho_g"][0] == ours["physics_rho_g"][0]
+    assert solved["rho_g"][0] != solved["rho_g"][1]  # trial 1 draws other errors
+    for row in (solved, mine):
+        pair = row["paired_vs_ours"]
+        diffs = [a - b for a, b in zip(row["rho_g"], ours["rho_g"], strict=True)]
+        assert pair["mean_difference"] == pytest.approx(sum(diffs) / 2)
+        assert row["simulations_mean"] is None  # a given layout spends nothing
+    text = (out / "benchmark.md").read_text()
+    assert "| layout 'solved' | 2 |" in text and "| layout 'mine' | 2 |" in text
+    again = run_benchmark(SIMPLE, out, references=["solved", str(first)], **kwargs)
+    assert _without_times(again) == _without_times(table)
+
+
 @pytest.mark.parametrize("argv, word", [
     (["benchmark", "simple", "--methods", "b1"], "--budget-sims"),
     (["benchmark", "simple", "--methods", "b1,b9"], "--methods"),
@@ -108,6 +136,9 @@ def test_ours_sets_the_budget_and_every_baseline_is_paired_with_it(tmp_path):
     (["benchmark", "simple", "--samples", "0", "--methods", "b1", "--budget-sims", "5"],
      "--samples"),
     (["benchmark", "simple", "--budget-sims", "0"], "--budget-sims"),
+    (["benchmark", "simple", "--reference", "nowhere.json"], "--reference"),
+    (["benchmark", "simple", "--reference", "initial", "--reference", "nowhere"],
+     "--reference"),
 ])
 def test_bad_requests_are_one_line_before_any_simulation(argv, word, tmp_path, capfd):
     assert main(["--build-dir", str(ROOT / "build" / "parts"), *argv,

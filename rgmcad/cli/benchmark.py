@@ -53,6 +53,10 @@ def configure(p: argparse.ArgumentParser) -> None:
                    "paper's Table 1 settings)")
     p.add_argument("--workers", type=int, default=None, help="simulation processes, 1 to 4 per "
                    "CPU (default: every CPU); results do not depend on it")
+    p.add_argument("--reference", action="append", default=[], metavar="LAYOUT",
+                   help="a layout of yours to compare with (a named layout of the scenario, "
+                   "e.g. solved, or a layout file): a row of the table, evaluated under every "
+                   "trial's errors, with its paired difference to ours; repeatable")
     add_physics_arg(p)
     p.add_argument("--json", action="store_true", help="print the table as one JSON object")
     add_scheduler_args(p)
@@ -88,7 +92,8 @@ def run(args) -> int:
                           trials=args.trials, seed=args.seed, budget_sims=args.budget_sims,
                           samples=args.samples, ours_budget=args.ours_budget,
                           workers=args.workers, build_dir=args.build_dir, progress=_Stages(),
-                          scheduler=args.scheduler, parts_dir=parts_dir, physics=physics)
+                          scheduler=args.scheduler, parts_dir=parts_dir, physics=physics,
+                          references=args.reference)
     if args.json:
         say(json.dumps(table))
         return 0

@@ -17,15 +17,16 @@ import numpy as np
 from rgmcad.errors import RgmcadError, UsageError
 from rgmcad.sim.run import Outcome
 
-__all__ = ["resolve_starts", "check_starts_valid", "starts_tag", "choose_layout"]
+__all__ = ["resolve_starts", "check_starts_valid", "starts_tag", "safe_name", "choose_layout"]
 
 OPTION = "--start"
 _CENTERING_STREAM = 2
 
 
-def resolve_starts(scenario, layouts: Sequence[str]) -> dict[str, np.ndarray]:
+def resolve_starts(scenario, layouts: Sequence[str],
+                   option: str = OPTION) -> dict[str, np.ndarray]:
     """Name -> normalised vector (d,) in [0, 1]^d of each start layout, in order; a layout
-    file is named by its stem. Raises :class:`~rgmcad.errors.UsageError` naming ``--start``
+    file is named by its stem. Raises :class:`~rgmcad.errors.UsageError` naming ``option``
     for an unknown or unreadable layout or one outside the free ranges."""
     from rgmcad.scene.design_space import bounds, vector_from_values
     from rgmcad.scene.layout_files import resolve_layout
@@ -36,14 +37,14 @@ def resolve_starts(scenario, layouts: Sequence[str]) -> dict[str, np.ndarray]:
         try:
             _, values = resolve_layout(scenario, given, None)
         except RgmcadError as exc:
-            raise UsageError(OPTION, given, f"expected a layout of {scenario.name} or a layout "
+            raise UsageError(option, given, f"expected a layout of {scenario.name} or a layout "
                              f"file ({exc})") from None
         x = vector_from_values(scenario, values)
         outside = [f"{f.name} = {v:g} not in [{lo:g}, {hi:g}]" for f, v, lo, hi, u in
                    zip(scenario.free, values, low, high, x, strict=True)
                    if not -1e-9 <= u <= 1 + 1e-9]  # a bound's rounding is inside
         if outside:
-            raise UsageError(OPTION, given, "outside the free ranges of the scenario: "
+            raise UsageError(option, given, "outside the free ranges of the scenario: "
                              + ", ".join(outside))
         name = given if given in scenario.layouts else Path(given).stem
         while name in starts:  # two files of the same stem
@@ -52,14 +53,14 @@ def resolve_starts(scenario, layouts: Sequence[str]) -> dict[str, np.ndarray]:
     return starts
 
 
-def check_starts_valid(problem, starts: dict[str, np.ndarray]) -> None:
+def check_starts_valid(problem, starts: dict[str, np.ndarray], option: str = OPTION) -> None:
     """Refuse a start whose bodies overlap (the simulator would never run it)."""
     if not starts:
         return
     ok = np.asarray(problem.validity(np.vstack(list(starts.values()))), dtype=bool)
     bad = [name for name, valid in zip(starts, ok, strict=True) if not valid]
     if bad:
-        raise UsageError(OPTION, bad[0], "its parts overlap (an invalid layout; `rgmcad "
+        raise UsageError(option, bad[0], "its parts overlap (an invalid layout; `rgmcad "
                          "simulate --layout` shows where): expected a valid layout")
 
 
@@ -67,7 +68,13 @@ def starts_tag(starts: Sequence[str]) -> str:
     """``-from-NAME[+NAME...]`` for a default run directory (empty without starts)."""
     if not starts:
         return ""
-    return "-from-" + "+".join(re.sub(r"[^A-Za-z0-9_.-]", "_", name) for name in starts)
+    return "-from-" + "+".join(safe_name(name) for name in starts)
+
+
+def safe_name(name: str) -> str:
+    """``name`` with every character but letters, digits, ``_``, ``.``, ``-`` made ``_``: a
+    layout's name as part of a folder's name."""
+    return re.sub(r"[^A-Za-z0-9_.-]", "_", name)
 
 
 def choose_layout(recorded, result, starts: dict[str, np.ndarray] | None = None,
