@@ -77,7 +77,7 @@ def test_a_killed_benchmark_resumes_to_the_identical_table(tmp_path):
     assert rows["b1"]["simulations_mean"] <= 20
 
 
-def test_ours_sets_the_budget_and_every_baseline_is_paired_with_it(tmp_path):
+def test_ours_sets_the_budget_and_every_baseline_and_given_layout_is_paired_with_it(tmp_path):
     table = run_benchmark(SIMPLE, tmp_path, methods=("ours", "full", "b1", "b2"), trials=2,
                           samples=1, ours_budget="small", ours_settings=TINY, workers=1)
     ours, full, b1, b2 = table["rows"]
@@ -99,33 +99,27 @@ def test_ours_sets_the_budget_and_every_baseline_is_paired_with_it(tmp_path):
                           samples=1, ours_budget="small", ours_settings=TINY, workers=1)
     assert _without_times(again) == _without_times(table)
 
-
-def test_a_users_layouts_are_rows_paired_with_ours_under_the_same_errors(tmp_path):
-    # a maker compares their hand layout, and ours' own first layout given back as a file,
-    # with the method: each is evaluated under every trial's errors like the methods' layouts
-    out = tmp_path / "bench"
-    first = tmp_path / "mine.json"
-    kwargs = dict(methods=("ours",), trials=2, samples=1, ours_budget="small",
-                  ours_settings=TINY, workers=1)
-    run_benchmark(SIMPLE, out, **kwargs)
-    first.write_text((out / "ours" / "t0" / "layout.json").read_text())
-    table = run_benchmark(SIMPLE, out, references=["solved", str(first)], **kwargs)
-    ours, solved, mine = table["rows"]
-    assert (solved["label"], mine["label"]) == ("layout 'solved'", "layout 'mine'")
-    assert set(table["references"]) == {"solved", "mine"}
-    # the layout given back is evaluated exactly as ours' trial 0 was (common errors)
-    assert mine["rho_g"][0] == ours["rho_g"][0]
-    assert mine["physics_rho_g"][0] == ours["physics_rho_g"][0]
+    # a maker's own layouts as rows: the scenario's `solved`, and ours' trial-0 layout given
+    # back as a file, each evaluated under every trial's errors like the methods' layouts
+    mine = tmp_path / "mine.json"
+    mine.write_text((tmp_path / "ours" / "t0" / "layout.json").read_text())
+    given = run_benchmark(SIMPLE, tmp_path, methods=("ours", "full", "b1", "b2"), trials=2,
+                          samples=1, ours_budget="small", ours_settings=TINY, workers=1,
+                          references=["solved", str(mine)])
+    assert _without_times(given)["rows"][:4] == _without_times(table)["rows"]
+    solved, mine_row = given["rows"][4:]
+    assert (solved["label"], mine_row["label"]) == ("layout 'solved'", "layout 'mine'")
+    assert set(given["references"]) == {"solved", "mine"}
+    # the layout given back scores exactly what ours' trial 0 scored: the same errors
+    assert mine_row["rho_g"][0] == ours["rho_g"][0]
+    assert mine_row["physics_rho_g"][0] == ours["physics_rho_g"][0]
     assert solved["rho_g"][0] != solved["rho_g"][1]  # trial 1 draws other errors
-    for row in (solved, mine):
-        pair = row["paired_vs_ours"]
+    for row in (solved, mine_row):
         diffs = [a - b for a, b in zip(row["rho_g"], ours["rho_g"], strict=True)]
-        assert pair["mean_difference"] == pytest.approx(sum(diffs) / 2)
+        assert row["paired_vs_ours"]["mean_difference"] == pytest.approx(sum(diffs) / 2)
         assert row["simulations_mean"] is None  # a given layout spends nothing
-    text = (out / "benchmark.md").read_text()
+    text = (tmp_path / "benchmark.md").read_text()
     assert "| layout 'solved' | 2 |" in text and "| layout 'mine' | 2 |" in text
-    again = run_benchmark(SIMPLE, out, references=["solved", str(first)], **kwargs)
-    assert _without_times(again) == _without_times(table)
 
 
 @pytest.mark.parametrize("argv, word", [
