@@ -7,12 +7,14 @@ success probability over the causal graph (:func:`fit_spd`), constrained refinem
 (:func:`maximize_robustness`) and placement tolerances (:func:`placement_tolerance`).
 :func:`learn_and_optimize` runs them all on a :class:`Problem`; :func:`verify_layout` then
 lets the simulator choose the layout to return among the optimum and the best-rated
-simulated successes.
+simulated successes, and :func:`second_look` learns again from that choice's simulations and
+keeps a refined layout only when it wins by simulation.
 
 Modules, in pipeline order: ``settings``, ``graph`` (the causal graph's order and success
 logic), ``oracles`` (the simulator protocol and synthetic problems), ``sampling``,
 ``gridsearch`` (the SVM's search and fits), ``classifier``, ``active``, ``dimensions`` (which
-parameters each event depends on), ``factorize``, ``optimize``, ``pipeline``, ``verify``.
+parameters each event depends on), ``factorize``, ``optimize``, ``pipeline``, ``verify``,
+``second_look``.
 """
 
 import logging
@@ -64,6 +66,7 @@ from .sampling import (
     first_valid,
     sample_mixture,
 )
+from .second_look import SecondLook, second_look
 from .settings import LearningSettings
 from .verify import Candidate, Verification, verify_layout
 
@@ -121,4 +124,6 @@ __all__ = [
     "synthesize_queries",
     "topological_events",
     "verify_layout",
+    "second_look",
+    "SecondLook",
 ]

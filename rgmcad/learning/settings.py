@@ -276,6 +276,11 @@ class LearningSettings:
     centering_check_samples : int, default 128
         Errors (the final choice's kind) at which the centre and the layout it came from
         are both simulated; the centre replaces that layout only if it succeeds more often.
+    second_look : bool, default True
+        Added by rgmcad: after the final choice, fit the model again on every simulation of
+        the run (the choice's own included), refine again, and keep the refined layout only
+        if it succeeds more often than the chosen one at ``verify_samples`` errors new to
+        both (:mod:`rgmcad.learning.second_look`). Needs ``verify_samples`` > 0.
     tolerance_ratio : float, default 0.9
         Placement tolerance: how far each coordinate may move before the predicted success
         probability drops below ``tolerance_ratio`` times its value at the optimum.
@@ -343,6 +348,7 @@ class LearningSettings:
     centering_batch: int = 16
     centering_hit_rate: float = 0.3
     centering_check_samples: int = 128
+    second_look: bool = True
     # Placement tolerance
     tolerance_ratio: float = 0.9
     tolerance_step: float = 0.005
@@ -379,15 +385,11 @@ class LearningSettings:
             value = getattr(self, name)
             if not value > 0:
                 raise ValueError(f"LearningSettings.{name} must be > 0, got {value!r}")
-        if not self.search_growth >= 0:
-            raise ValueError(
-                f"LearningSettings.search_growth must be >= 0, got {self.search_growth!r}"
-            )
-        if self.smooth_min_alpha < 0 or self.constraint_tolerance < 0 or self.placement_noise < 0:
-            raise ValueError(
-                "LearningSettings.smooth_min_alpha, constraint_tolerance and placement_noise "
-                "must be >= 0"
-            )
+        for name in ("search_growth", "smooth_min_alpha", "constraint_tolerance",
+                     "placement_noise"):
+            if not getattr(self, name) >= 0:
+                raise ValueError(f"LearningSettings.{name} must be >= 0, got "
+                                 f"{getattr(self, name)!r}")
         if not 0.0 < self.centering_hit_rate < 1.0:
             raise ValueError("LearningSettings.centering_hit_rate must lie in (0, 1), got "
                              f"{self.centering_hit_rate!r}")
@@ -406,11 +408,9 @@ class LearningSettings:
                              f"{self.error_radius!r}")
         if not self.svm_C_grid or not self.svm_gamma_grid or not self.svm_class_weights:
             raise ValueError("LearningSettings: the SVM grids must not be empty")
-        bad = [w for w in self.svm_class_weights if w not in (None, "balanced")]
-        if bad:
-            raise ValueError(
-                f"LearningSettings.svm_class_weights: {bad!r} not allowed; use None or 'balanced'"
-            )
+        if bad := [w for w in self.svm_class_weights if w not in (None, "balanced")]:
+            raise ValueError(f"LearningSettings.svm_class_weights: {bad!r} not allowed; use "
+                             "None or 'balanced'")
 
     def replace(self, **changes) -> LearningSettings:
         """A copy with some fields changed (unknown names raise ``TypeError``)."""

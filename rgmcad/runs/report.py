@@ -82,7 +82,8 @@ def report_markdown(scenario, s: dict, low, high) -> str:
                   + "".join(f" The {c['moved_from']} failed its own simulation, "
                             "so the nearest of the few layouts drawn within 1/300 of it that "
                             "succeeded took its place." for c in s["verification"]
-                            if c.get("moved_from")), "",
+                            if c.get("moved_from"))
+                  + _second_look_words(s.get("second_look")), "",
                   "| candidate | success under errors | valid copies |",
                   "|---|---|---|"]
         for c in s["verification"]:
@@ -90,6 +91,19 @@ def report_markdown(scenario, s: dict, low, high) -> str:
     lines += ["", "## Plots", "", f"![probability slice]({SLICE_PLOT})", "",
               f"![robustness]({ROBUSTNESS_PLOT})", "", f"![exploration]({PROGRESS_PLOT})", ""]
     return "\n".join(lines)
+
+
+def _second_look_words(look) -> str:
+    if not look or not look["check"]:
+        return ""
+    c = look["check"]
+    verdict = ("so the refined layout was kept" if look["kept"] else
+               "so the layout chosen above was kept")
+    return (" Then the model was fitted again on every simulation of the run, these "
+            "candidates' included, and the refinement run again: both the layout chosen and "
+            f"the refined one were simulated at errors neither had met, {c['before']:.2f} "
+            f"against {c['refined']:.2f} ({c['valid_copies'][0]} and {c['valid_copies'][1]} "
+            f"valid copies), {verdict}.")
 
 
 def _race_words(stages: list[int], planned: int | None) -> str:

@@ -20,7 +20,7 @@ from rgmcad.sim.run import Outcome
 __all__ = ["resolve_starts", "check_starts_valid", "starts_tag", "safe_name", "choose_layout"]
 
 OPTION = "--start"
-_CENTERING_STREAM = 2
+_CENTERING_STREAM, _SECOND_LOOK_STREAM = 2, 3
 
 
 def resolve_starts(scenario, layouts: Sequence[str],
@@ -82,13 +82,25 @@ def choose_layout(recorded, result, starts: dict[str, np.ndarray] | None = None,
     """The layout to hand out, by simulation (:func:`rgmcad.learning.verify_layout`), with
     the words the summary gives for where it came from. ``seed`` seeds the centring (a
     stream of its own: the learning's draws do not depend on it)."""
-    from rgmcad.learning import verify_layout
+    from rgmcad.learning import second_look, verify_layout
 
-    v = verify_layout(result.model, result.x, result.X, result.labels, recorded.simulate,
+    seen_X, seen = [result.X], list(result.labels)
+
+    def simulate(P):  # every simulation of the choice, for the second look's model
+        labels = recorded.simulate(P)
+        seen_X.append(np.atleast_2d(P))
+        seen.extend(labels)
+        return labels
+
+    v = verify_layout(result.model, result.x, result.X, result.labels, simulate,
                       recorded.validity, result.settings, starts=starts,
                       rng=np.random.default_rng([seed, _CENTERING_STREAM]),
                       exploration_successes=result.n_exploration_successes)
-    c = v.chosen
+    c, look = v.chosen, None
+    if v.verified and result.settings.second_look and result.settings.verify_samples:
+        look = second_look(recorded, result.settings, np.vstack(seen_X), seen, c, simulate,
+                           np.random.default_rng([seed, _SECOND_LOOK_STREAM]))
+    final = look.chosen if look is not None else c
     optimum = Outcome(v.optimum.outcome)
     if not v.verified:
         source = (f"optimum, unverified: its simulation gave {optimum} and no "
@@ -113,14 +125,34 @@ def choose_layout(recorded, result, starts: dict[str, np.ndarray] | None = None,
     if c.centered:
         source += (f", centred by simulation (success under errors "
                    f"{v.centering_check[0].success_rate:.2f} -> {c.success_rate:.2f})")
-    return {"x": c.x, "source": source, "verified": v.verified,
-            "is_optimum": c.source == "optimum" and not c.centered,
-            "optimum_outcome": optimum.value, "n_simulations": v.n_simulations,
+    refined = final is not c
+    if refined:
+        source += (f", then refined again on the run's simulations (success under new "
+                   f"errors {look.check[0].success_rate:.2f} -> {final.success_rate:.2f})")
+    n_look = look.n_simulations if look is not None else 0
+    return {"x": final.x, "source": source, "verified": v.verified,
+            "is_optimum": c.source == "optimum" and not c.centered and not refined,
+            "optimum_outcome": optimum.value, "n_simulations": v.n_simulations + n_look,
             "by_stage": {"verification": v.n_simulations - v.n_centering_simulations,
                          **({"centering": v.n_centering_simulations}
-                            if v.n_centering_simulations else {})},
-            "centering": centering, "race_stages": list(v.race_stages),
+                            if v.n_centering_simulations else {}),
+                         **({"second look": n_look} if n_look else {})},
+            "centering": centering, "second_look": _look_summary(look, refined),
+            "race_stages": list(v.race_stages),
             "candidates": [{"source": t.source, "vector": [float(u) for u in t.x],
                             "success_rate": t.success_rate, "valid_copies": t.n_valid,
                             **({"moved_from": t.moved_from} if t.moved_from else {})}
                            for t in v.candidates]}
+
+
+def _look_summary(look, refined: bool) -> dict | None:
+    """result.json's account of the second look (None when it did not run)."""
+    if look is None:
+        return None
+    out = {"simulations": look.n_simulations, "kept": refined, "check": None}
+    if look.check is not None:
+        before, after = look.check
+        out["check"] = {"before": before.success_rate, "refined": after.success_rate,
+                        "valid_copies": [before.n_valid, after.n_valid],
+                        "vector": [float(u) for u in after.x], "source": after.source}
+    return out

@@ -70,7 +70,7 @@ FORMAT = 1
 
 # LearningSettings fields left out of a run's identity: those that change how fast it goes,
 # never what it finds; and fields added later, at the value older runs had (still resumable)
-_NOT_IDENTITY, _ADDED_LATER = ("n_jobs",), {"unmodelled_at": "start"}
+_NOT_IDENTITY, _ADDED_LATER = ("n_jobs",), {"unmodelled_at": "start", "second_look": False}
 
 
 def run_identity(scenario_name: str, scenario_sha256: str, seed: int, settings,

@@ -220,7 +220,8 @@ def optimize_scenario(
                         f"{scenario_path} --vector {','.join(['0.5'] * len(scenario.free))}` "
                         "shows which overlap in the middle of the ranges") from None
             progress.stage("verification")
-            chosen = choose_layout(learner_problem, result, start_vectors, seed)
+            with jobs_on(executor):  # the second look fits the models again
+                chosen = choose_layout(learner_problem, result, start_vectors, seed)
             robustness = None
             if robustness_samples:
                 from rgmcad.runs.robustness import figures, robustness_on
@@ -332,7 +333,7 @@ def _write_outputs(scenario, store, recorded, result, chosen, wall_time, seed, b
         "simulations_by_stage": {**result.n_simulations, **chosen["by_stage"]},
         "exploration": result.exploration_summary(),
         "verification": chosen["candidates"],
-        "centering": chosen["centering"],
+        "centering": chosen["centering"], "second_look": chosen["second_look"],
         "verify_noise": result.settings.verify_noise, "error_radius": result.settings.error_radius,
         "race_stages": chosen["race_stages"], "verify_samples": result.settings.verify_samples,
         "robustness": robustness,

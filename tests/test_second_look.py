@@ -1,0 +1,113 @@
+"""The second look: the model fitted again on the final choice's own simulations, the
+refinement run again, and the refined layout kept only when it wins by simulation."""
+
+import numpy as np
+
+from rgmcad.learning import Candidate, LearningSettings, second_look, verify_layout
+from rgmcad.learning.errors import ball_errors
+from rgmcad.learning.oracles import BallRegion, OracleEvent, ProductOracle
+
+FAST = LearningSettings(svm_C_grid=(1.0, 10.0, 100.0, 1000.0), svm_gamma_grid=(0.1, 1.0, 10.0),
+                        svm_class_weights=(None,), centering_simulations=0, verify_samples=256,
+                        error_radius=0.5, verify_candidates=2, active_max_iter=2)
+
+
+class _Counted:
+    """A disc oracle (success iff (x0, x1) lies within 0.3 of the centre) that counts what
+    it is asked to simulate."""
+
+    def __init__(self):
+        self.oracle = ProductOracle(2, {"hit": OracleEvent((), (0, 1),
+                                                          BallRegion((0.5, 0.5), 0.3))})
+        self.event_parents, self.any_joins = self.oracle.event_parents, self.oracle.any_joins
+        self.validity, self.penetration = self.oracle.validity, self.oracle.penetration
+        self.simulated = 0
+
+    def simulate(self, X):
+        X = np.atleast_2d(X)
+        self.simulated += len(X)
+        return self.oracle.simulate(X)
+
+
+def _robustness(oracle, x, n=4096) -> float:
+    """rho_g of ``x`` up to radius 0.5, by many errors (the truth the check estimates)."""
+    offsets, weights = ball_errors(2, 0.5, n, scramble=7).at(x)
+    ok = weights > 0
+    return float(np.mean([lab.success for lab in oracle.simulate(x + offsets[ok])]))
+
+
+def _edge_run(oracle, seed=0):
+    """What a run knew before its final choice: samples of the disc's right edge only (the
+    model there cannot tell where the disc's middle is), and a success near the edge."""
+    rng = np.random.default_rng(seed)
+    X = np.column_stack([rng.uniform(0.7, 1.0, 200), rng.uniform(0.0, 1.0, 200)])
+    return X, oracle.simulate(X)
+
+
+def test_the_refined_layout_replaces_the_chosen_one_when_the_simulator_says_it_is_better():
+    oracle = _Counted()
+    X, labels = _edge_run(oracle)
+    edge = Candidate(np.array([0.76, 0.5]), "simulated sample #3", "success")
+    # the final choice's simulations: the candidate's copies under the errors of rho_g
+    offsets, weights = ball_errors(2, 0.5, 256).at(edge.x)
+    P = edge.x + offsets[weights > 0]
+    seen_X, seen = np.vstack([X, P]), [*labels, *oracle.simulate(P)]
+    oracle.simulated = 0
+    look = second_look(oracle, FAST, seen_X, seen, edge, oracle.simulate,
+                       np.random.default_rng(0))
+    before, after = look.check
+    assert look.chosen is not edge and look.chosen.source == "refined again from " + edge.source
+    assert after.success_rate > before.success_rate + 0.1
+    # what the simulator rated higher is more robust in truth, and it moved inwards
+    assert _robustness(oracle.oracle, look.chosen.x) > _robustness(oracle.oracle, edge.x) + 0.1
+    assert np.hypot(*(look.chosen.x - 0.5)) < np.hypot(*(edge.x - 0.5)) - 0.1
+    # the fit asked for nothing; every simulation is the refined layout's own and the check's
+    assert look.n_simulations == oracle.simulated == 1 + before.n_valid + after.n_valid
+    # it is the final choice's simulations that show the way: without them the refit model
+    # knows the edge alone, and the layout refined from it stays near the edge
+    blind = second_look(oracle, FAST, X, labels, edge, oracle.simulate, np.random.default_rng(0))
+    assert _robustness(oracle.oracle, blind.chosen.x) < _robustness(oracle.oracle,
+                                                                    look.chosen.x) - 0.1
+    if blind.check is not None:  # whatever it keeps, never one the simulator rated lower
+        assert (blind.chosen is edge) == (blind.check[1].success_rate
+                                          <= blind.check[0].success_rate)
+    # the same inputs, the same answer (a resumed run replays them)
+    again = second_look(oracle, FAST, seen_X, seen, edge, oracle.simulate,
+                        np.random.default_rng(0))
+    np.testing.assert_array_equal(again.chosen.x, look.chosen.x)
+
+
+def test_a_layout_at_the_middle_of_its_region_is_kept_or_replaced_by_one_as_good():
+    oracle = _Counted()
+    rng = np.random.default_rng(2)
+    X = rng.random((400, 2))
+    centre = Candidate(np.array([0.5, 0.5]), "optimum", "success")
+    look = second_look(oracle, FAST, X, oracle.simulate(X), centre, oracle.simulate,
+                       np.random.default_rng(0))
+    assert abs(_robustness(oracle.oracle, look.chosen.x)
+               - _robustness(oracle.oracle, centre.x)) < 0.03
+
+
+def test_a_run_s_final_choice_then_second_look_end_to_end():
+    # verify_layout's candidates, then the second look on everything simulated, as
+    # `rgmcad optimize` chains them: the layout returned is at least as robust as the choice
+    oracle = _Counted()
+    X, labels = _edge_run(oracle, seed=3)
+    seen_X, seen = [X], list(labels)
+
+    def simulate(P):
+        got = oracle.simulate(P)
+        seen_X.append(np.atleast_2d(P))
+        seen.extend(got)
+        return got
+
+    from rgmcad.learning import SPDModel, SuccessClassifier
+
+    y = np.array([lab.success for lab in labels])
+    clf = SuccessClassifier.from_settings(FAST, random_state=0).fit(X, y)
+    model = SPDModel(("hit",), {"hit": clf}, True, 1.0, False, 2)
+    v = verify_layout(model, np.array([0.78, 0.5]), X, labels, simulate, oracle.validity, FAST)
+    look = second_look(oracle, FAST, np.vstack(seen_X), seen, v.chosen, simulate,
+                       np.random.default_rng(0))
+    assert _robustness(oracle.oracle, look.chosen.x) >= _robustness(oracle.oracle,
+                                                                    v.chosen.x) - 0.02
