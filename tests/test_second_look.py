@@ -111,3 +111,38 @@ def test_a_run_s_final_choice_then_second_look_end_to_end():
                        np.random.default_rng(0))
     assert _robustness(oracle.oracle, look.chosen.x) >= _robustness(oracle.oracle,
                                                                     v.chosen.x) - 0.02
+
+
+def test_a_refined_layout_that_fails_where_it_stands_gives_way_to_the_next():
+    # first see where the best refined layout lands, then make the disc fail within 0.004 of
+    # it (more than the hair a failed layout may be moved by): it is never returned, and the
+    # layout refined from the next start is simulated instead
+    oracle = _Counted()
+    X, labels = _edge_run(oracle, seed=4)
+    edge = Candidate(np.array([0.76, 0.5]), "simulated sample #3", "success")
+    offsets, weights = ball_errors(2, 0.5, 256).at(edge.x)
+    P = edge.x + offsets[weights > 0]
+    seen_X, seen = np.vstack([X, P]), [*labels, *oracle.simulate(P)]
+    asked = []
+
+    def simulate(P):
+        asked.append(np.atleast_2d(P))
+        return oracle.simulate(P)
+
+    second_look(oracle, FAST, seen_X, seen, edge, simulate, np.random.default_rng(0))
+    best = asked[0][0]
+    asked.clear()
+
+    def with_a_hole(P):
+        P = np.atleast_2d(P)
+        asked.append(P)
+        return [lab if np.hypot(*(x - best)) > 0.004 else type(lab)(lab.valid, False, {
+                    e: False for e in lab.events}) for x, lab in zip(P, oracle.simulate(P),
+                                                                     strict=True)]
+
+    look = second_look(oracle, FAST, seen_X, seen, edge, with_a_hole, np.random.default_rng(0))
+    alone = [P[0] for P in asked if len(P) == 1]  # each refined layout's own simulation
+    np.testing.assert_array_equal(alone[0], best)
+    assert len(alone) == 2  # the next refined layout was tried
+    assert np.hypot(*(look.chosen.x - best)) > 0.004
+    assert look.chosen is edge or with_a_hole(look.chosen.x)[0].success
