@@ -146,3 +146,40 @@ def test_a_refined_layout_that_fails_where_it_stands_gives_way_to_the_next():
     assert len(alone) == 2  # the next refined layout was tried
     assert np.hypot(*(look.chosen.x - best)) > 0.004
     assert look.chosen is edge or with_a_hole(look.chosen.x)[0].success
+
+
+def test_optimize_says_what_the_second_look_did_and_returns_that_layout(tmp_path):
+    # the user's view: `optimize` on simple; result.json, the summary's words and report.md
+    # agree with what the second look did, and the layout file is the layout it kept
+    import json
+
+    from _support import TINY
+
+    from rgmcad.learning.settings import budget
+    from rgmcad.runs.workflow import optimize_scenario
+    from rgmcad.shipped import scenario_path
+
+    # (the small budget's run keeps the refined layout: 0.00 -> 0.40 at 8 errors, measured)
+    run = optimize_scenario(scenario_path("simple"), seed=0, settings=budget("small"),
+                            run_dir=tmp_path, workers=1)
+    look, s = run.summary["second_look"], run.summary
+    assert look is not None and look["simulations"] == s["simulations_by_stage"]["second look"]
+    assert sum(s["simulations_by_stage"].values()) == s["evaluations"]
+    layout = json.loads((tmp_path / "layout.json").read_text())["vector"]
+    report = (tmp_path / "report.md").read_text()
+    if look["kept"]:
+        assert layout == look["check"]["vector"] == s["vector"]
+        assert look["check"]["refined"] > look["check"]["before"]
+        assert "then refined again on the run's simulations" in s["source"]
+        assert "so the refined layout was kept" in report
+    else:
+        assert "refined again" not in s["source"]
+        assert layout in [c["vector"] for c in s["verification"]] or s["centering"]
+    # off, the run is the one before the second look, and its directory is another run's
+    plain = optimize_scenario(scenario_path("simple"), seed=0,
+                              settings=TINY.replace(second_look=False), run_dir=tmp_path / "off",
+                              workers=1)
+    assert plain.summary["second_look"] is None
+    assert "second look" not in plain.summary["simulations_by_stage"]
+    assert "second_look" not in json.loads((tmp_path / "off" / "settings.json").read_text())[
+        "settings"]

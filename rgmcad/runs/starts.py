@@ -80,8 +80,10 @@ def safe_name(name: str) -> str:
 def choose_layout(recorded, result, starts: dict[str, np.ndarray] | None = None,
                   seed: int = 0) -> dict:
     """The layout to hand out, by simulation (:func:`rgmcad.learning.verify_layout`), with
-    the words the summary gives for where it came from. ``seed`` seeds the centring (a
-    stream of its own: the learning's draws do not depend on it)."""
+    the words the summary gives for where it came from; then the second look
+    (:func:`rgmcad.learning.second_look`) when the settings ask for it. ``seed`` seeds the
+    centring and the second look's fit (streams of their own: the learning's draws do not
+    depend on them)."""
     from rgmcad.learning import second_look, verify_layout
 
     seen_X, seen = [result.X], list(result.labels)
