@@ -145,15 +145,33 @@ def _machines(port: int, folder: Path):
             p.wait()
 
 
+def _scheduler_address(log: Path, proc: subprocess.Popen, timeout: float = 120) -> str:
+    """The address ``dask scheduler --port 0`` prints, read as a user reads it before pointing
+    a command at it: no port picked in advance that another process could take meanwhile, and
+    no connect timeout running while a loaded machine is still starting the scheduler."""
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        for line in log.read_text().splitlines():
+            if "Scheduler at:" in line:
+                return line.split("Scheduler at:")[1].strip()
+        assert proc.poll() is None, log.read_text()
+        time.sleep(0.2)
+    raise AssertionError(f"the scheduler printed no address in {timeout} s: {log.read_text()}")
+
+
 def test_a_scheduler_of_another_version_is_refused_in_one_line(tmp_path):
     # the scheduler unpickles every task graph: it needs this rgmcad too
     (tmp_path / "other.py").write_text("import rgmcad\nrgmcad.__version__ = '0.0.9-other'\n")
-    port = _free_port()
-    scheduler = _start(["scheduler", "--host", "127.0.0.1", "--port", str(port),
-                        "--no-dashboard", "--preload", str(tmp_path / "other.py")], tmp_path)
+    log = tmp_path / "scheduler.log"
+    with open(log, "w") as stderr:
+        scheduler = subprocess.Popen([DASK, "scheduler", "--host", "127.0.0.1", "--port", "0",
+                                      "--no-dashboard", "--preload", str(tmp_path / "other.py")],
+                                     cwd=tmp_path, stdout=subprocess.DEVNULL, stderr=stderr,
+                                     start_new_session=True)
     try:
+        address = _scheduler_address(log, scheduler)
         code, out, err = cli_output(["evaluate", SIMPLE, "--layout", "initial", "--samples", "1",
-                               "--scheduler", f"tcp://127.0.0.1:{port}",
+                               "--scheduler", address,
                                "--out", str(tmp_path / "p.png")])
     finally:
         os.killpg(scheduler.pid, signal.SIGKILL)
