@@ -19,16 +19,15 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from .errors import design_from_settings
 from .factorize import fit_spd
 from .optimize import maximize_robustness, place_unmodelled, start_points
-from .verify import _MOST_ERRORS, Candidate, _nudged, _raced, outcome
+from .verify import Candidate, nudged, outcome, race_at_verify_errors
 
 __all__ = ["SecondLook", "second_look"]
 
 # the errors of the check: independent of the final choice's (scramble 0 is theirs, 1 the
 # errors a race adds while copies are mostly invalid)
-_CHECK_ERRORS_SEED, _CHECK_MORE_SEED = 2, 3
+_CHECK_SCRAMBLES = (2, 3)
 
 
 @dataclass(frozen=True)
@@ -89,20 +88,15 @@ def second_look(problem, model_settings, X: np.ndarray, labels, chosen: Candidat
         if own.success:
             refined = Candidate(x, source, outcome(own))
             break
-        refined, n_nudges = _nudged(x, simulate, problem.validity, source)
+        refined, n_nudges = nudged(x, simulate, problem.validity, source)
         n_sims += n_nudges
         if refined is not None:
             break
     if refined is None:
         return SecondLook(chosen, None, n_sims)
-    d = len(x)
-    design = design_from_settings(d, s, s.verify_samples, s.verify_noise,
-                                  scramble=_CHECK_ERRORS_SEED)
-    n = len(design.offsets)
-    more = design_from_settings(d, s, _MOST_ERRORS * n, s.verify_noise, scramble=_CHECK_MORE_SEED)
     unrated = dict(success_rate=float("nan"), n_valid=0)
-    tested, n_tested, best_index, _ = _raced(
-        [replace(chosen, **unrated), replace(refined, **unrated)], design, simulate,
-        problem.validity, more=more.interleaved().head((_MOST_ERRORS - 1) * n))
+    tested, n_tested, best_index, _ = race_at_verify_errors(
+        [replace(chosen, **unrated), replace(refined, **unrated)], s, simulate,
+        problem.validity, scrambles=_CHECK_SCRAMBLES)
     before, after = tested
     return SecondLook(after if best_index == 1 else chosen, (before, after), n_sims + n_tested)

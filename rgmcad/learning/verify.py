@@ -20,7 +20,7 @@ rate among its valid copies (per radius, then averaged over radii, for ball erro
 ties go to the earlier candidate, so the optimum first.
 
 An optimum that fails its own simulation is first moved, by at most 1/300 of the
-normalised space, to the nearest of a few layouts drawn there that succeeds (``_nudged``),
+normalised space, to the nearest of a few layouts drawn there that succeeds (``nudged``),
 which is then the first candidate; only when none does is the optimum left out.
 
 Start layouts (the user's own, ``starts``) that succeeded in their own simulation are always
@@ -175,9 +175,9 @@ def verify_layout(
     own = simulate(x_opt[None, :])[0]
     optimum = Candidate(x_opt, "optimum", outcome(own))
     n_sims = 1
-    nudged = None
+    moved_optimum = None
     if not own.success and settings.verify_samples > 0:
-        nudged, n_nudges = _nudged(x_opt, simulate, validity)
+        moved_optimum, n_nudges = nudged(x_opt, simulate, validity)
         n_sims += n_nudges
 
     d = len(x_opt)
@@ -191,7 +191,7 @@ def verify_layout(
                                   settings.placement_noise)
     order = (np.argsort(-expected_success(model, X[successes], rating), kind="stable")
              if successes else [])
-    first = [optimum] if own.success else [nudged] if nudged is not None else []
+    first = ([optimum] if own.success else [moved_optimum] if moved_optimum is not None else [])
     n_alternatives = settings.verify_candidates - len(first)
     candidates = first + list(own_starts.candidates) + [
         Candidate(X[successes[k]], f"simulated sample #{successes[k]}", "success")
@@ -202,15 +202,10 @@ def verify_layout(
     if settings.verify_samples == 0:
         return Verification(candidates[0], True, optimum, (), n_sims)
 
-    design = design_from_settings(d, settings, settings.verify_samples, settings.verify_noise)
     chosen, tested, stages = candidates[0], [], ()
     if len(candidates) > 1:
-        n = len(design.offsets)
-        more = design_from_settings(d, settings, _MOST_ERRORS * n, settings.verify_noise,
-                                    scramble=_MORE_ERRORS_SEED)
-        tested, n_tested, best, stages = _raced(
-            candidates, design, simulate, validity,
-            more=more.interleaved().head((_MOST_ERRORS - 1) * n))
+        tested, n_tested, best, stages = race_at_verify_errors(candidates, settings, simulate,
+                                                               validity)
         n_sims += n_tested
         chosen = tested[best]
     if not _centring_wanted(settings, exploration_successes):
@@ -233,7 +228,7 @@ def verify_layout(
     # 0.16 more robust below its start (docs/decisions.md, "Design centring")
     check = design_from_settings(d, settings, settings.centering_check_samples,
                                  settings.verify_noise)
-    before, centre = _raced([replace(chosen, success_rate=float("nan"), n_valid=0),
+    before, centre = raced([replace(chosen, success_rate=float("nan"), n_valid=0),
                              replace(chosen, x=centring.x, outcome="success", centered=True,
                                      success_rate=float("nan"), n_valid=0)],
                             check, simulate, validity, race=False)[0]
@@ -254,7 +249,7 @@ def verify_layout(
 _NUDGES, _NUDGE_RADIUS, _NUDGE_STREAM = 8, 1.0 / 300.0, 0x4E55_4447
 
 
-def _nudged(x: np.ndarray, simulate, validity,
+def nudged(x: np.ndarray, simulate, validity,
             name: str = "optimum") -> tuple[Candidate | None, int]:
     """The nearest to ``x`` (the candidate ``name``) of _NUDGES valid layouts uniform in
     the ball of radius _NUDGE_RADIUS around it (inside the cube) that succeeds in its own
@@ -312,8 +307,25 @@ def race_stages(n_errors: int, n_most: int | None = None) -> list[int]:
     return stages
 
 
-def _raced(candidates, design, simulate, validity, race: bool = True, more=None
-           ) -> tuple[list[Candidate], int, int, tuple[int, ...]]:
+def race_at_verify_errors(candidates, settings: LearningSettings, simulate, validity,
+                          scrambles: tuple[int | None, int] = (None, _MORE_ERRORS_SEED)
+                          ) -> tuple[list[Candidate], int, int, tuple[int, ...]]:
+    """:func:`raced` at ``settings.verify_samples`` errors and, while copies are mostly
+    invalid, up to _MOST_ERRORS times as many from an independent design; ``scrambles`` are
+    the two designs' (the final choice's by default; another pair gives errors it never
+    met)."""
+    d = len(candidates[0].x)
+    design = design_from_settings(d, settings, settings.verify_samples, settings.verify_noise,
+                                  scramble=scrambles[0])
+    n = len(design.offsets)
+    more = design_from_settings(d, settings, _MOST_ERRORS * n, settings.verify_noise,
+                                scramble=scrambles[1])
+    return raced(candidates, design, simulate, validity,
+                 more=more.interleaved().head((_MOST_ERRORS - 1) * n))
+
+
+def raced(candidates, design, simulate, validity, race: bool = True, more=None
+          ) -> tuple[list[Candidate], int, int, tuple[int, ...]]:
     """Each candidate with its success rate under the design's errors (common to all), raced
     as described above (``race=False``: all of them at every error, in one batch; ``more``:
     the errors appended while copies are mostly invalid); also the simulations that took,
@@ -382,7 +394,7 @@ class _Starts:
 def _successful_starts(starts, x_opt, X, labels, simulate, validity, nudge: bool) -> _Starts:
     """The start layouts that succeeded in their own simulation (looked up among the run's
     samples, else simulated now), as candidates; one equal to the optimum is the optimum.
-    With ``nudge``, one that failed is moved by a hair as the optimum is (``_nudged``)."""
+    With ``nudge``, one that failed is moved by a hair as the optimum is (``nudged``)."""
     found, missing = [], []
     for name, x in starts.items():
         x = np.asarray(x, dtype=float)
@@ -403,7 +415,7 @@ def _successful_starts(starts, x_opt, X, labels, simulate, validity, nudge: bool
         if lab.success:
             candidates.append(Candidate(x, source, "success"))
         elif nudge:
-            moved, n = _nudged(x, simulate, validity, source)
+            moved, n = nudged(x, simulate, validity, source)
             n_sims += n
             candidates += [moved] if moved is not None else []
     return _Starts(tuple(candidates), n_sims)
