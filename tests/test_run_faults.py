@@ -151,6 +151,51 @@ def test_kill_9_of_optimize_then_the_same_command_resumes_to_the_same_result(
             killed.wait()
 
 
+# the run of `_optimize_command`, killed with SIGKILL by itself at its ``at``-th simulation of
+# the second look (the moment cannot be hit from outside: the look is a second on simple)
+_KILLED_IN_THE_SECOND_LOOK = """
+import os, signal, sys
+from rgmcad.runs.workflow import RunProgress, optimize_scenario
+
+class KillInTheLook(RunProgress):
+    look = None
+
+    def stage(self, name, total=None):
+        if name == "second look":
+            self.look = 0
+
+    def simulated(self, record, replayed=False):
+        if self.look is not None:
+            self.look += 1
+            if self.look == int(sys.argv[2]):
+                os.kill(os.getpid(), signal.SIGKILL)
+
+optimize_scenario(sys.argv[1], budget="small", run_dir=sys.argv[3], workers=2,
+                  progress=KillInTheLook())
+"""
+
+
+def test_kill_9_during_the_second_look_then_the_same_command_resumes_to_the_same_result(
+        small_run, tmp_path):
+    _, reference = small_run
+    assert reference["simulations_by_stage"]["second look"] >= 3  # the kill lands inside it
+    run = tmp_path / "run"
+    killed = subprocess.run([sys.executable, "-c", _KILLED_IN_THE_SECOND_LOOK, SIMPLE, "2",
+                             str(run)], cwd=ROOT, capture_output=True, timeout=300)
+    assert killed.returncode == -signal.SIGKILL, killed.stderr[-2000:]
+    before_look = reference["simulations"] - reference["simulations_by_stage"]["second look"]
+    done_before = (run / SIMULATIONS).read_bytes().count(b"\n")
+    assert before_look + 2 <= done_before < reference["simulations"]
+    resumed = subprocess.run(_optimize_command(run), cwd=ROOT, capture_output=True, text=True,
+                             timeout=300)
+    assert resumed.returncode == 0, resumed.stderr[-2000:]
+    summary = json.loads(resumed.stdout)
+    for key in ("vector", "probability", "simulations", "simulations_by_stage", "second_look",
+                "source"):
+        assert summary[key] == reference[key], key
+    assert summary["replayed"] >= done_before
+
+
 def _ctrl_c_at(command: list[str], journal: Path, lines: int) -> tuple[float, str, dict]:
     """Run ``command`` in its own session (as a terminal's foreground job), press Ctrl-C
     (SIGINT to the whole process group) once the journal holds ``lines`` lines: (seconds to

@@ -78,12 +78,12 @@ def safe_name(name: str) -> str:
 
 
 def choose_layout(recorded, result, starts: dict[str, np.ndarray] | None = None,
-                  seed: int = 0) -> dict:
+                  seed: int = 0, on_stage=None) -> dict:
     """The layout to hand out, by simulation (:func:`rgmcad.learning.verify_layout`), with
     the words the summary gives for where it came from; then the second look
     (:func:`rgmcad.learning.second_look`) when the settings ask for it. ``seed`` seeds the
     centring and the second look's fit (streams of their own: the learning's draws do not
-    depend on them)."""
+    depend on them). ``on_stage(name)`` is told when the second look begins."""
     from rgmcad.learning import second_look, verify_layout
 
     seen_X, seen = [result.X], list(result.labels)
@@ -100,6 +100,8 @@ def choose_layout(recorded, result, starts: dict[str, np.ndarray] | None = None,
                       exploration_successes=result.n_exploration_successes)
     c, look = v.chosen, None
     if v.verified and result.settings.second_look and result.settings.verify_samples:
+        if on_stage is not None:
+            on_stage("second look")
         look = second_look(recorded, result.settings, np.vstack(seen_X), seen, c, simulate,
                            np.random.default_rng([seed, _SECOND_LOOK_STREAM]))
     final = look.chosen if look is not None else c

@@ -65,7 +65,8 @@ class RunProgress:
 
     def stage(self, name: str, total: int | None = None) -> None:
         """A stage begins (``"exploration"``, ``"active:<event>"``, ``"verification"``,
-        ``"validity"``, ``"simulation"``...), of ``total`` items when known."""
+        ``"second look"``, ``"validity"``, ``"simulation"``...), of ``total`` items when
+        known."""
 
     def simulated(self, record: SimRecord, replayed: bool = False) -> None:
         """One simulation finished (or was read back from the run directory)."""
@@ -221,7 +222,8 @@ def optimize_scenario(
                         "shows which overlap in the middle of the ranges") from None
             progress.stage("verification")
             with jobs_on(executor):  # the second look fits the models again
-                chosen = choose_layout(learner_problem, result, start_vectors, seed)
+                chosen = choose_layout(learner_problem, result, start_vectors, seed,
+                                       on_stage=progress.stage)
             robustness = None
             if robustness_samples:
                 from rgmcad.runs.robustness import figures, robustness_on
