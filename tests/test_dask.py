@@ -11,7 +11,6 @@ import contextlib
 import json
 import os
 import signal
-import socket
 import subprocess
 import sys
 import time
@@ -108,41 +107,15 @@ def test_a_worker_of_another_version_is_refused_in_one_line(cluster, tmp_path):
     assert not (tmp_path / "p.png").exists()
 
 
-def _free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
-
-
 DASK = str(Path(sys.executable).with_name("dask"))
 
 
-def _start(argv: list, cwd: Path) -> subprocess.Popen:
-    """A ``dask scheduler`` or ``dask worker`` process as a user starts one."""
-    return subprocess.Popen([DASK, *argv], cwd=cwd, stdout=subprocess.DEVNULL,
-                            stderr=subprocess.DEVNULL, start_new_session=True)
-
-
-@contextlib.contextmanager
-def _machines(port: int, folder: Path):
-    """The README's "several machines": ``dask scheduler`` and two ``dask worker ADDRESS``,
-    each worker in an empty folder of its own (no scenario, no parts); yields the address."""
-    address = f"tcp://127.0.0.1:{port}"
-    procs = [_start(["scheduler", "--host", "127.0.0.1", "--port", str(port),
-                     "--no-dashboard"], folder)]
-    try:
-        for i in (1, 2):
-            (folder / f"machine{i}").mkdir(exist_ok=True)
-            procs.append(_start(["worker", address, "--nthreads", "1", "--no-dashboard"],
-                                folder / f"machine{i}"))
-        with distributed.Client(address, timeout=60, set_as_default=False) as client:
-            client.wait_for_workers(2, timeout=120)
-        yield address, procs
-    finally:
-        for p in procs:
-            if p.poll() is None:
-                os.killpg(p.pid, signal.SIGKILL)
-            p.wait()
+def _start(argv: list, cwd: Path, log: Path | None = None) -> subprocess.Popen:
+    """A ``dask scheduler`` or ``dask worker`` process as a user starts one (its messages to
+    ``log`` when given)."""
+    with open(log or os.devnull, "w") as stderr:
+        return subprocess.Popen([DASK, *argv], cwd=cwd, stdout=subprocess.DEVNULL,
+                                stderr=stderr, start_new_session=True)
 
 
 def _scheduler_address(log: Path, proc: subprocess.Popen, timeout: float = 120) -> str:
@@ -159,15 +132,36 @@ def _scheduler_address(log: Path, proc: subprocess.Popen, timeout: float = 120) 
     raise AssertionError(f"the scheduler printed no address in {timeout} s: {log.read_text()}")
 
 
+@contextlib.contextmanager
+def _machines(folder: Path, port: int = 0):
+    """The README's "several machines": ``dask scheduler`` (on ``port``; 0: one it picks) and
+    two ``dask worker ADDRESS``, each worker in an empty folder of its own (no scenario, no
+    parts); yields the address the scheduler printed and the processes."""
+    log = folder / f"scheduler-{port}-{time.monotonic_ns()}.log"
+    procs = [_start(["scheduler", "--host", "127.0.0.1", "--port", str(port),
+                     "--no-dashboard"], folder, log)]
+    try:
+        address = _scheduler_address(log, procs[0])
+        for i in (1, 2):
+            (folder / f"machine{i}").mkdir(exist_ok=True)
+            procs.append(_start(["worker", address, "--nthreads", "1", "--no-dashboard"],
+                                folder / f"machine{i}"))
+        with distributed.Client(address, timeout=60, set_as_default=False) as client:
+            client.wait_for_workers(2, timeout=120)
+        yield address, procs
+    finally:
+        for p in procs:
+            if p.poll() is None:
+                os.killpg(p.pid, signal.SIGKILL)
+            p.wait()
+
+
 def test_a_scheduler_of_another_version_is_refused_in_one_line(tmp_path):
     # the scheduler unpickles every task graph: it needs this rgmcad too
     (tmp_path / "other.py").write_text("import rgmcad\nrgmcad.__version__ = '0.0.9-other'\n")
     log = tmp_path / "scheduler.log"
-    with open(log, "w") as stderr:
-        scheduler = subprocess.Popen([DASK, "scheduler", "--host", "127.0.0.1", "--port", "0",
-                                      "--no-dashboard", "--preload", str(tmp_path / "other.py")],
-                                     cwd=tmp_path, stdout=subprocess.DEVNULL, stderr=stderr,
-                                     start_new_session=True)
+    scheduler = _start(["scheduler", "--host", "127.0.0.1", "--port", "0", "--no-dashboard",
+                        "--preload", str(tmp_path / "other.py")], tmp_path, log)
     try:
         address = _scheduler_address(log, scheduler)
         code, out, err = cli_output(["evaluate", SIMPLE, "--layout", "initial", "--samples", "1",
@@ -183,12 +177,11 @@ def test_a_scheduler_of_another_version_is_refused_in_one_line(tmp_path):
 
 
 def test_a_scheduler_killed_mid_run_stops_it_in_one_line_and_it_resumes(serial, tmp_path):
-    port = _free_port()
     run = tmp_path / "run"
     command = [sys.executable, "-m", "rgmcad.cli", "optimize", SIMPLE, "--budget", "small",
-               "--seed", "3", "--run", str(run), "--json", "--scheduler",
-               f"tcp://127.0.0.1:{port}"]
-    with _machines(port, tmp_path) as (address, (scheduler, *workers)):
+               "--seed", "3", "--run", str(run), "--json", "--scheduler"]
+    with _machines(tmp_path) as (address, (scheduler, *workers)):
+        command.append(address)
         proc = subprocess.Popen(command, cwd=ROOT, stdout=subprocess.PIPE,
                                 stderr=subprocess.PIPE, text=True)
         deadline = time.monotonic() + 120
@@ -204,7 +197,8 @@ def test_a_scheduler_killed_mid_run_stops_it_in_one_line_and_it_resumes(serial, 
     errors = [ln for ln in err.splitlines() if ln.startswith("rgmcad: error")]
     assert len(errors) == 1 and "run the same command again" in errors[0], err
     assert 40 <= journal.read_text().count("\n") < serial["simulations"]
-    with _machines(port, tmp_path):  # both back; the same command, here to save a start-up
+    port = int(address.rsplit(":", 1)[1])
+    with _machines(tmp_path, port):  # both back; the same command, here to save a start-up
         code, out, err = cli_output(command[3:])
     assert code in (0, 1), err
     got = json.loads(out)
