@@ -674,6 +674,20 @@ def test_final_choice_prefers_the_layout_that_survives_placement_errors():
 
 
 
+def test_the_final_choice_races_each_layout_once_when_the_run_simulated_it_again():
+    # the best-rated success simulated three times (queries clipped to a face do that): the
+    # race takes it once and the next distinct successes in the other places
+    oracle = disc_oracle(d=2)
+    X = np.array([[0.5, 0.5], [0.5, 0.5], [0.5, 0.5], [0.62, 0.5], [0.72, 0.5]])
+    settings = FAST.replace(verify_samples=32, error_radius=0.5, verify_candidates=4)
+    v = verify_layout(disc_model(), np.array([0.45, 0.55]), X, oracle.simulate(X),
+                      oracle.simulate, oracle.validity, settings)
+    vectors = [tuple(c.x) for c in v.candidates]
+    assert len(vectors) == 4 == len(set(vectors))
+    assert [c.source for c in v.candidates] == ["optimum", "simulated sample #0",
+                                                "simulated sample #3", "simulated sample #4"]
+
+
 class _Pinhole:
     """The disc oracle, except where ``pin`` is exactly: a tie broken the wrong way there."""
 

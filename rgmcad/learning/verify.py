@@ -184,9 +184,15 @@ def verify_layout(
     own_starts = _successful_starts(starts or {}, x_opt, X, labels, simulate, validity,
                                     nudge=settings.verify_samples > 0)
     n_sims += own_starts.n_simulations
-    taken = [x_opt, *(c.x for c in own_starts.candidates)]
-    successes = [i for i, lab in enumerate(labels)
-                 if lab.success and not any(np.array_equal(X[i], t) for t in taken)]
+    # each layout once: a run can simulate the same vector again (active learning's queries
+    # clipped to a face of the design space), and a repeat would take a distinct one's place
+    taken = {np.asarray(t, dtype=float).tobytes()
+             for t in (x_opt, *(c.x for c in own_starts.candidates))}
+    successes = []
+    for i, lab in enumerate(labels):
+        if lab.success and X[i].tobytes() not in taken:
+            taken.add(X[i].tobytes())
+            successes.append(i)
     rating = design_from_settings(d, settings, settings.placement_samples,
                                   settings.placement_noise)
     order = (np.argsort(-expected_success(model, X[successes], rating), kind="stable")
