@@ -119,12 +119,10 @@ def show(summary: dict, as_json: bool, wall_time: float | None = None) -> None:
     extra = f" and {estimate} for the rho_g estimate" if estimate else ""
     say(f"{summary['simulations']} simulations ({summary['successes']} successes, "
         f"{summary['replayed']} replayed){extra} in {summary['wall_time']:.0f} s")
-    say("placement tolerances (down / up):")
-    for name, (down, up) in summary["tolerances"].items():
-        unit = "deg" if name.split(".")[-1] in ("heading", "pitch", "roll") else "mm"
-        k = 1.0 if unit == "deg" else 1000.0
-        say(f"  {name:24s} {summary['values'][name] * k:9.2f} {unit:3s}  "
-            f"-{down * k:.2f} / +{up * k:.2f}")
+    from rgmcad.runs.report import placement_lines
+
+    for line in placement_lines(summary):
+        say(line)
     run = Path(summary["run"])
     say(f"report: {run / 'report.html'} (as text: {run / 'report.md'}); the layout as CAD: "
         f"{', '.join(str(run / n) for n in RUN_FILES)}")

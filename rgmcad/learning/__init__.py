@@ -46,6 +46,7 @@ from .optimize import (
     OptimizationResult,
     maximize_robustness,
     placement_tolerance,
+    range_ends,
     start_point,
 )
 from .oracles import (
@@ -116,6 +117,7 @@ __all__ = [
     "learn_and_optimize",
     "maximize_robustness",
     "placement_tolerance",
+    "range_ends",
     "query_distribution",
     "sample_mixture",
     "select_dimensions",

@@ -295,3 +295,16 @@ def placement_tolerance(
                     lo = mid
             out[j, k] = lo
     return out
+
+
+def range_ends(x: np.ndarray, tolerances: np.ndarray) -> list[str | None]:
+    """Per coordinate of ``x``, the ends of the unit cube its ``tolerances`` (as
+    :func:`placement_tolerance` gives them) reach: ``"low"``, ``"high"``, ``"both"`` or None.
+    A tolerance that reaches an end is the range's, not the layout's: nothing beyond a range
+    is simulated, so the model cannot say where the layout would fail past it."""
+    x = np.asarray(x, dtype=float).reshape(-1)
+    low = x - tolerances[:, 0] <= 1e-9
+    high = x + tolerances[:, 1] >= 1.0 - 1e-9
+    return ["both" if lo and hi else "low" if lo else "high" if hi else None
+            for lo, hi in zip(low, high, strict=True)]
+

@@ -17,6 +17,7 @@ from rgmcad.runs.robustness import close_in_warning, failures_line
 from rgmcad.scene.perturbation import PhysicsRanges
 
 __all__ = ["REPORT_FILE", "SLICE_PLOT", "PROGRESS_PLOT", "ROBUSTNESS_PLOT", "ERROR_GRID",
+           "RANGE_END", "RANGE_END_NOTE", "placement_lines", "range_end_marks",
            "report_markdown", "plot_slice", "plot_progress", "plot_robustness",
            "predicted_robustness", "user_scale"]
 
@@ -33,6 +34,35 @@ def user_scale(parameter) -> tuple[float, str]:
     """(factor from the parameter's real unit to the user's, the user's unit): metres to
     millimetres, degrees stay degrees."""
     return (1.0, "deg") if parameter.unit == "deg" else (1000.0, "mm")
+
+
+RANGE_END = " (end of range)"
+RANGE_END_NOTE = ("a tolerance marked 'end of range' stops where the parameter's range ends, "
+                  "not where the layout fails: nothing beyond a range is simulated. If the "
+                  "parts allow, widen that range in the scenario and run again: the layout "
+                  "may then move away from the end.")
+
+
+def range_end_marks(s: dict, name: str) -> tuple[str, str]:
+    """The marks of a parameter's tolerance down and up in a run's summary: RANGE_END on a
+    side whose tolerance reaches the end of the range (``range_ends``), else ""."""
+    end = s.get("range_ends", {}).get(name)  # absent from runs made before it
+    return (RANGE_END if end in ("low", "both") else "",
+            RANGE_END if end in ("high", "both") else "")
+
+
+def placement_lines(s: dict) -> list[str]:
+    """A run's placement tolerances as ``rgmcad optimize`` prints them (mm and degrees)."""
+    lines = ["placement tolerances (down / up):"]
+    for name, (down, up) in s["tolerances"].items():
+        angle = name.split(".")[-1] in ("heading", "pitch", "roll")
+        k, unit = (1.0, "deg") if angle else (1000.0, "mm")
+        low_end, high_end = range_end_marks(s, name)
+        lines.append(f"  {name:24s} {s['values'][name] * k:9.2f} {unit:3s}  "
+                     f"-{down * k:.2f}{low_end} / +{up * k:.2f}{high_end}")
+    if s.get("range_ends"):
+        lines.append(f"note: {RANGE_END_NOTE}")
+    return lines
 
 
 def report_markdown(scenario, s: dict, low, high) -> str:
@@ -69,8 +99,12 @@ def report_markdown(scenario, s: dict, low, high) -> str:
     for j, f in enumerate(scenario.free):
         k, unit = user_scale(f)
         down, up = s["tolerances"][f.name]
-        lines.append(f"| {f.name} | {s['values'][f.name] * k:.2f} {unit} | {down * k:.2f} | "
-                     f"{up * k:.2f} | [{low[j] * k:.2f}, {high[j] * k:.2f}] |")
+        low_end, high_end = range_end_marks(s, f.name)
+        lines.append(f"| {f.name} | {s['values'][f.name] * k:.2f} {unit} | {down * k:.2f}"
+                     f"{low_end} | {up * k:.2f}{high_end} | [{low[j] * k:.2f}, "
+                     f"{high[j] * k:.2f}] |")
+    if s.get("range_ends"):
+        lines += ["", RANGE_END_NOTE[0].upper() + RANGE_END_NOTE[1:]]
     if s.get("verification"):
         lines += ["", "## Choice of the layout", "",
                   "Each candidate succeeded in simulation; then it was simulated at "

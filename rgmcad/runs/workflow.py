@@ -65,8 +65,7 @@ class RunProgress:
 
     def stage(self, name: str, total: int | None = None) -> None:
         """A stage begins (``"exploration"``, ``"active:<event>"``, ``"verification"``,
-        ``"second look"``, ``"validity"``, ``"simulation"``...), of ``total`` items when
-        known."""
+        ``"second look"``, ``"validity"``, ``"simulation"``...), of ``total`` items if known."""
 
     def simulated(self, record: SimRecord, replayed: bool = False) -> None:
         """One simulation finished (or was read back from the run directory)."""
@@ -280,6 +279,7 @@ def _readable_json(path: Path) -> bool:
 
 def _write_outputs(scenario, store, recorded, result, chosen, wall_time, seed, budget,
                    robustness=None, starts=None) -> dict:
+    from rgmcad.learning import range_ends
     from rgmcad.scene.design_space import bounds
     from rgmcad.scene.layout_files import layout_document
 
@@ -318,6 +318,8 @@ def _write_outputs(scenario, store, recorded, result, chosen, wall_time, seed, b
         "weakest_event": weakest,
         "weakest_probability": weakest_probability,
         "tolerances": tolerances,
+        "range_ends": {f.name: end for f, end in zip(scenario.free, range_ends(x, tol),
+                                                      strict=True) if end},
         "influence": {f.name: float(v) for f, v in zip(scenario.free, spread, strict=True)},
         "verified": chosen["verified"],
         "source": chosen["source"],

@@ -14,7 +14,14 @@ from html import escape
 from pathlib import Path
 
 from rgmcad.parts.store import DEFAULT_BUILD_DIR
-from rgmcad.runs.report import PROGRESS_PLOT, ROBUSTNESS_PLOT, SLICE_PLOT, user_scale
+from rgmcad.runs.report import (
+    PROGRESS_PLOT,
+    RANGE_END_NOTE,
+    ROBUSTNESS_PLOT,
+    SLICE_PLOT,
+    range_end_marks,
+    user_scale,
+)
 from rgmcad.runs.store import RESULT
 from rgmcad.viewer.page import html_page, replay_section
 from rgmcad.viewer.recording import record_replay, replay_payload
@@ -135,16 +142,19 @@ def _placement(scenario, s: dict, low, high) -> str:
         down, up = (v * k for v in s["tolerances"][f.name])
         tight = min(down, up) < (TIGHT_DEG if unit == "deg" else TIGHT_MM)
         n_tight += tight
+        low_end, high_end = range_end_marks(s, f.name)
         rows.append(f'<tr class="{"tight" if tight else ""}"><td><code>{escape(f.name)}</code>'
                     f"{' (tight)' if tight else ''}</td><td>{s['values'][f.name] * k:.2f} "
-                    f"{unit}</td><td>&minus;{down:.2f}</td><td>+{up:.2f}</td>"
+                    f"{unit}</td><td>&minus;{down:.2f}{low_end}</td><td>+{up:.2f}{high_end}</td>"
                     f"<td>{low[j] * k:.2f} to {high[j] * k:.2f}</td></tr>")
+    note = (f"<p>{escape(RANGE_END_NOTE[0].upper() + RANGE_END_NOTE[1:])}</p>"
+            if s.get("range_ends") else "")
     return ("<h2>Placement tolerances</h2><p>How far each part may be misplaced, one "
             "parameter at a time, before the predicted success drops below 90 % of its value "
             f"here. Highlighted: tight ones (under {TIGHT_MM:g} mm or {TIGHT_DEG:g} degrees on "
             f"a side), {n_tight} of {len(rows)}: place those with care.</p>"
             "<table><tr><th>parameter</th><th>value</th><th>may move down</th>"
-            "<th>may move up</th><th>range</th></tr>" + "".join(rows) + "</table>")
+            "<th>may move up</th><th>range</th></tr>" + "".join(rows) + "</table>" + note)
 
 
 def _figures(run_dir: Path) -> str:

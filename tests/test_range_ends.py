@@ -1,0 +1,61 @@
+"""A layout whose placement tolerance stops at the end of a parameter's range: ``rgmcad
+optimize`` says so where the user reads the tolerances (the printed summary, report.md,
+report.html) and tells them what to do, since nothing beyond a range is simulated."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+
+from rgmcad.learning import range_ends
+from tests._support import cli_output
+
+ROOT = Path(__file__).resolve().parent.parent
+
+
+def _one_parameter_simple(tmp_path: Path) -> Path:
+    """simple with only the track's roll free, over 15-75 degrees: the chain works from about
+    9 to 40 degrees, so the most robust layout in the range sits near its low end, and the
+    model knows nothing below it."""
+    text = (ROOT / "scenarios" / "simple.toml").read_text()
+    for old, new in (("free = { x = [-0.15, 0.0], z = [0.0, 0.15], roll = [15, 75] }",
+                      "free = { roll = [15, 75] }"),
+                     ("track = { x = -0.1, z = 0.1, roll = 30 }", "track = { roll = 30 }")):
+        assert old in text  # the shipped scenario changed: update this test's edit
+        text = text.replace(old, new)
+    path = tmp_path / "roll_only.toml"
+    path.write_text(text)
+    return path
+
+
+def test_a_tolerance_stopped_by_the_range_is_marked_and_the_user_told_to_widen_it(tmp_path):
+    scenario = _one_parameter_simple(tmp_path)
+    run = tmp_path / "run"
+    code, out, err = cli_output(["optimize", str(scenario), "--budget", "small", "--run",
+                                 str(run), "-q"])
+    assert code == 0, err
+    summary = json.loads((run / "result.json").read_text())
+    down, up = summary["tolerances"]["track.roll"]
+    roll = summary["values"]["track.roll"]
+    # the law: marked on a side exactly when the tolerance there reaches the range's end
+    assert summary["range_ends"].get("track.roll") in ("low", "both")
+    assert abs(roll - down - 15.0) < 1e-9
+    assert (abs(roll + up - 75.0) < 1e-9) == (summary["range_ends"]["track.roll"] == "both")
+    line = next(ln for ln in out.splitlines() if ln.strip().startswith("track.roll"))
+    assert f"-{down:.2f} (end of range) /" in line
+    assert "note: a tolerance marked 'end of range'" in out and "widen that range" in out
+    for name in ("report.md", "report.html"):
+        text = (run / name).read_text()
+        assert f"{down:.2f} (end of range)" in text and "widen that range" in text, name
+    # the same run directory shown again (finished): the same words
+    code, again, _ = cli_output(["optimize", str(scenario), "--budget", "small", "--run",
+                                 str(run), "-q"])
+    assert code == 0 and line in again and "widen that range" in again
+
+
+def test_a_tolerance_inside_the_range_is_not_marked():
+    x = np.array([0.5, 0.0, 0.97, 0.4])
+    tol = np.array([[0.1, 0.2], [0.0, 0.3], [0.2, 0.03], [0.4, 0.6]])
+    assert range_ends(x, tol) == [None, "low", "high", "both"]
