@@ -17,7 +17,7 @@ from rgmcad.runs.robustness import close_in_warning, failures_line
 from rgmcad.scene.perturbation import PhysicsRanges
 
 __all__ = ["REPORT_FILE", "SLICE_PLOT", "PROGRESS_PLOT", "ROBUSTNESS_PLOT", "ERROR_GRID",
-           "RANGE_END", "RANGE_END_NOTE", "placement_lines", "range_end_marks",
+           "RANGE_END", "RANGE_END_NOTE", "RANGE_END_SENTENCE", "placement_lines", "range_end_marks",
            "report_markdown", "plot_slice", "plot_progress", "plot_robustness",
            "predicted_robustness", "user_scale"]
 
@@ -41,6 +41,7 @@ RANGE_END_NOTE = ("a tolerance marked 'end of range' stops where the parameter's
                   "not where the layout fails: nothing beyond a range is simulated. If the "
                   "parts allow, widen that range in the scenario and run again: the layout "
                   "may then move away from the end.")
+RANGE_END_SENTENCE = RANGE_END_NOTE[0].upper() + RANGE_END_NOTE[1:]  # the note as a paragraph
 
 
 def range_end_marks(s: dict, name: str) -> tuple[str, str]:
@@ -104,7 +105,7 @@ def report_markdown(scenario, s: dict, low, high) -> str:
                      f"{low_end} | {up * k:.2f}{high_end} | [{low[j] * k:.2f}, "
                      f"{high[j] * k:.2f}] |")
     if s.get("range_ends"):
-        lines += ["", RANGE_END_NOTE[0].upper() + RANGE_END_NOTE[1:]]
+        lines += ["", RANGE_END_SENTENCE]
     if s.get("verification"):
         lines += ["", "## Choice of the layout", "",
                   "Each candidate succeeded in simulation; then it was simulated at "

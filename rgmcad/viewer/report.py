@@ -16,7 +16,7 @@ from pathlib import Path
 from rgmcad.parts.store import DEFAULT_BUILD_DIR
 from rgmcad.runs.report import (
     PROGRESS_PLOT,
-    RANGE_END_NOTE,
+    RANGE_END_SENTENCE,
     ROBUSTNESS_PLOT,
     SLICE_PLOT,
     range_end_marks,
@@ -147,7 +147,7 @@ def _placement(scenario, s: dict, low, high) -> str:
                     f"{' (tight)' if tight else ''}</td><td>{s['values'][f.name] * k:.2f} "
                     f"{unit}</td><td>&minus;{down:.2f}{low_end}</td><td>+{up:.2f}{high_end}</td>"
                     f"<td>{low[j] * k:.2f} to {high[j] * k:.2f}</td></tr>")
-    note = (f"<p>{escape(RANGE_END_NOTE[0].upper() + RANGE_END_NOTE[1:])}</p>"
+    note = (f"<p>{escape(RANGE_END_SENTENCE)}</p>"
             if s.get("range_ends") else "")
     return ("<h2>Placement tolerances</h2><p>How far each part may be misplaced, one "
             "parameter at a time, before the predicted success drops below 90 % of its value "
