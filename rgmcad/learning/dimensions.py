@@ -67,8 +67,7 @@ def joint_mutual_information(Z: np.ndarray, y: np.ndarray, n_neighbors: int = 3)
 
 
 def select_dimensions(
-    X: np.ndarray, y: np.ndarray, settings: LearningSettings, random_state: int,
-    admissible: tuple[int, ...] | None = None,
+    X: np.ndarray, y: np.ndarray, settings: LearningSettings, random_state: int
 ) -> tuple[tuple[int, ...], np.ndarray, float]:
     """Dimensions that carry information about the binary label ``y``.
 
@@ -83,9 +82,6 @@ def select_dimensions(
     permutation test of the label against all columns at the 5 % level), every dimension
     is kept, so that an event decided only by its dimensions together still gets a model
     (see docs/decisions.md, "Event dimensions: joint selection against a permutation floor").
-    ``admissible`` (default: every dimension) limits that fallback, its test and the
-    dimensions it keeps, to the parameters the causal graph lets act on the event (see
-    :func:`rgmcad.scene.causal_scope.event_parameters`).
 
     ``"marginal"``: the authors' rule, ``MI_j > mi_relative_threshold * max(MI)`` on each
     dimension alone, and ``MI_j`` above the largest MI of any dimension against the label
@@ -104,18 +100,13 @@ def select_dimensions(
     floor : float
         The chance level of the last test (0 without permutations).
     """
-    return _select(X, y, settings, random_state, admissible)[:3]
-
-
-def _select(X, y, settings, random_state, admissible):
-    """:func:`select_dimensions`, and whether its dimensions are the joint fallback's."""
     y = np.asarray(y, dtype=bool)
     d = X.shape[1]
     if len(y) < 2 or y.all() or not y.any():
-        return (), np.zeros(d), 0.0, False
+        return (), np.zeros(d), 0.0
     rng = np.random.default_rng(random_state)
     if settings.mi_selection == "marginal":
-        return *_select_marginal(X, y, settings, random_state, rng), False
+        return _select_marginal(X, y, settings, random_state, rng)
 
     std = X.std(axis=0)
     Z = X / np.where(std > 0, std, 1.0)
@@ -151,14 +142,12 @@ def _select(X, y, settings, random_state, admissible):
         # No parameter is informative alone, yet all of them may be together (a label set
         # by x AND z): a permutation test of the label against every dimension at once, at
         # the 5 % level (it must beat 19 permuted labels; cheap, one estimate each).
-        columns = list(range(d)) if admissible is None else sorted(admissible)
-        if columns:
-            k_all = joint_mutual_information(Z[:, columns], y, k)
-            floor = max(joint_mutual_information(Z[:, columns], rng.permutation(y), k)
-                        for _ in range(max(19, settings.mi_null_permutations)))
-            if k_all > floor:
-                return tuple(columns), single, floor, True
-    return tuple(sorted(selected)), single, floor, False
+        k_all = joint_mutual_information(Z, y, k)
+        floor = max(joint_mutual_information(Z, rng.permutation(y), k)
+                    for _ in range(max(19, settings.mi_null_permutations)))
+        if k_all > floor:
+            selected = list(range(d))
+    return tuple(sorted(selected)), single, floor
 
 
 def _select_marginal(X, y, settings, random_state, rng):
@@ -196,8 +185,6 @@ class EventAnalysis:
         Chance level of the MI (see :func:`select_dimensions`).
     dims : tuple of int
         Selected subspace (empty for quasi-deterministic or uninformative events).
-    joint : bool
-        ``dims`` are the fallback's: no parameter informative alone, these together.
     """
 
     event: str
@@ -207,20 +194,17 @@ class EventAnalysis:
     mutual_information: np.ndarray | None
     dims: tuple[int, ...]
     mi_floor: float = 0.0
-    joint: bool = False
 
 
 def analyse_event(
-    X: np.ndarray, y: np.ndarray, event: str, settings: LearningSettings, random_state: int,
-    admissible: tuple[int, ...] | None = None,
+    X: np.ndarray, y: np.ndarray, event: str, settings: LearningSettings, random_state: int
 ) -> EventAnalysis:
-    """Quasi-determinism test and dimension selection for one event's data (``admissible``:
-    see :func:`select_dimensions`)."""
+    """Quasi-determinism test and dimension selection for one event's data."""
     n = len(y)
     if n == 0:
         return EventAnalysis(event, 0, float("nan"), False, None, ())
     rate = float(np.mean(y))
     if rate >= settings.quasi_deterministic_rate:
         return EventAnalysis(event, n, rate, True, None, ())
-    dims, mi, floor, joint = _select(X, y, settings, random_state, admissible)
-    return EventAnalysis(event, n, rate, False, mi, dims, floor, joint)
+    dims, mi, floor = select_dimensions(X, y, settings, random_state)
+    return EventAnalysis(event, n, rate, False, mi, dims, floor)

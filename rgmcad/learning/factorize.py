@@ -300,7 +300,6 @@ def fit_spd(
     settings: LearningSettings,
     rng: np.random.Generator,
     any_joins: Collection[str] = frozenset(),
-    event_parameters: Mapping[str, Sequence[int]] | None = None,
 ) -> SPDFit:
     """Learn the success-probability model from exploration data (paper sections 5.2-6).
 
@@ -324,11 +323,6 @@ def fit_spd(
         Events that wake when any parent succeeded. Such an event's factor is learnt on the
         samples where it woke (its label is None otherwise), and the model combines the
         factors according to the graph (see :mod:`.logic`).
-    event_parameters : Mapping[str, sequence of int], optional
-        Per event, the parameters the causal graph lets act on it; when no parameter is
-        informative alone, the model of the event falls back to these together rather than
-        to all d (see :func:`~.dimensions.select_dimensions`), and to a constant if they
-        predict it no better than one (see :func:`_beats_constant`).
 
     Returns
     -------
@@ -370,8 +364,7 @@ def fit_spd(
     for event in order:
         parents = tuple(event_parents[event])
         Xe, ye = event_dataset(X, labels, event, parents)
-        admissible = None if event_parameters is None else tuple(event_parameters[event])
-        analysis = analyse_event(Xe, ye, event, s, int(rng.integers(2**31 - 1)), admissible)
+        analysis = analyse_event(Xe, ye, event, s, int(rng.integers(2**31 - 1)))
         analyses[event] = analysis
         if analysis.n_samples == 0:
             logger.warning("event %r: no exploration sample where its parents succeeded", event)
@@ -405,9 +398,6 @@ def fit_spd(
             Xtrain, ytrain, label_event, validity, s, rng, dims=analysis.dims, accept=accept
         )
         models[event] = res.classifier
-        if analysis.joint and event_parameters is not None and not _beats_constant(res):
-            models[event] = ConstantModel((float(np.sum(res.y)) + 1.0) / (len(res.y) + 2.0),
-                                          "no informative dimension")
         n_sim[event] = res.n_queries
         n_lab[event] = res.n_labelled
         acc[event] = res.accuracy_history
@@ -418,18 +408,6 @@ def fit_spd(
     model = SPDModel(order, models, True, s.smooth_min_alpha, s.include_certain_events, d,
                      logic=None if logic.is_conjunction else logic)
     return SPDFit(model, analyses, n_sim, n_lab, acc)
-
-
-def _beats_constant(res) -> bool:
-    """Whether the classifier of an active-learning result beats always answering the
-    majority class of its training labels, out of fold, by more than two standard errors
-    (a fallback model no better than a constant only adds noise to the objective)."""
-    y = np.asarray(res.y, dtype=bool)
-    if len(y) == 0:
-        return False
-    majority = max(float(y.mean()), 1.0 - float(y.mean()))
-    margin = 2.0 * np.sqrt(majority * (1.0 - majority) / len(y))
-    return res.classifier.cv_accuracy_ > majority + margin
 
 
 def _ancestor_filter(

@@ -84,8 +84,6 @@ class Problem(Protocol):
         """Simulate each row of ``X`` (n, d); one :class:`Label` per row, in order."""
         ...
 
-    # Optional: ``event_parameters``, each event's scope (the parameters that can act on it
-    # by the causal graph's order; see :func:`~rgmcad.learning.factorize.fit_spd`).
     # Optional: ``submit(X) -> wait``, which starts simulating ``X`` elsewhere (a process
     # pool) and returns ``wait() -> list[Label]``. The exploration then draws its next batch
     # while the last one simulates (``LearningSettings.exploration_lag``); without it, a

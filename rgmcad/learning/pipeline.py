@@ -256,7 +256,6 @@ def learn_and_optimize(
     fit = fit_spd(
         exploration.X, exploration.labels, problem.event_parents, problem.validity, record,
         settings, rng, any_joins=problem.any_joins,
-        event_parameters=getattr(problem, "event_parameters", None),
     )
     model = fit.model
     report("model", f"learnt factors: {list(model.learned_events)}")

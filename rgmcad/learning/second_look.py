@@ -65,8 +65,7 @@ def second_look(problem, model_settings, X: np.ndarray, labels, chosen: Candidat
         raise RuntimeError("the second look's fit asked for simulations")
 
     model = fit_spd(X, labels, problem.event_parents, problem.validity, no_simulation,
-                    s.replace(active_max_iter=0), rng, any_joins=problem.any_joins,
-                    event_parameters=getattr(problem, "event_parameters", None)).model
+                    s.replace(active_max_iter=0), rng, any_joins=problem.any_joins).model
     valid = np.flatnonzero([lab.valid for lab in labels])
     starts = [(chosen.x, chosen.source)] + [(X[valid[r]], f"simulated sample #{valid[r]}")
                                              for r in start_points(model, X[valid], s)]

@@ -13,9 +13,7 @@ learner's :class:`~rgmcad.learning.oracles.Label` follows. Importing this module
 import the learner (scikit-learn alone takes 3 s to import), so pool workers start fast.
 
 The causal graph handed to the learner is the scenario's: ``event_parents`` (each event's
-``after``), ``any_joins`` (the events with ``join = "any"``) and ``event_parameters`` (the
-free parameters each event's place in the graph lets act on it,
-:func:`rgmcad.scene.causal_scope.event_parameters`).
+``after``) and ``any_joins`` (the events with ``join = "any"``).
 """
 
 from __future__ import annotations
@@ -28,7 +26,6 @@ from pathlib import Path
 import numpy as np
 
 from rgmcad.parts.store import DEFAULT_BUILD_DIR
-from rgmcad.scene.causal_scope import event_parameters
 from rgmcad.sim.run import Outcome
 
 __all__ = ["SimRecord", "ScenarioContext", "ScenarioProblem", "ContextPayload", "simulate_task",
@@ -295,8 +292,6 @@ class ScenarioProblem:
         The causal graph (see :func:`event_parents`).
     any_joins : frozenset of str
         Its events with ``join = "any"``.
-    event_parameters : Mapping[str, tuple[int, ...]]
-        Each event's scope (:func:`rgmcad.scene.causal_scope.event_parameters`).
     """
 
     scenario_path: str
@@ -305,7 +300,6 @@ class ScenarioProblem:
     dimension: int = field(init=False)
     event_parents: Mapping[str, tuple[str, ...]] = field(init=False)
     any_joins: frozenset[str] = field(init=False)
-    event_parameters: Mapping[str, tuple[int, ...]] = field(init=False)
     _context: ScenarioContext | None = field(default=None, init=False, repr=False)
 
     def __post_init__(self):
@@ -317,13 +311,11 @@ class ScenarioProblem:
         object.__setattr__(self, "dimension", scenario.dimension)
         object.__setattr__(self, "event_parents", event_parents(scenario))
         object.__setattr__(self, "any_joins", any_joins(scenario))
-        object.__setattr__(self, "event_parameters", event_parameters(scenario))
 
     def __getstate__(self):  # the context stays in its process
         return {"scenario_path": self.scenario_path, "build_dir": self.build_dir,
                 "parts_dir": self.parts_dir, "dimension": self.dimension,
-                "event_parents": dict(self.event_parents), "any_joins": self.any_joins,
-                "event_parameters": dict(self.event_parameters)}
+                "event_parents": dict(self.event_parents), "any_joins": self.any_joins}
 
     def __setstate__(self, state):
         object.__setattr__(self, "_context", None)

@@ -368,8 +368,8 @@ class RecordedProblem:
         self.executor = executor
         self.on_simulation = on_simulation
         self.dimension = problem.dimension
-        self.event_parents, self.any_joins = problem.event_parents, problem.any_joins
-        self.event_parameters = getattr(problem, "event_parameters", None)
+        self.event_parents = problem.event_parents
+        self.any_joins = problem.any_joins
         self.n_replayed = 0
         self.n_simulated = 0
         self._in_flight = 0  # batches submitted and not yet waited for
