@@ -56,7 +56,9 @@ def test_the_refined_layout_replaces_the_chosen_one_when_the_simulator_says_it_i
     look = second_look(oracle, FAST, seen_X, seen, edge, oracle.simulate,
                        np.random.default_rng(0))
     before, after = look.check
-    assert look.chosen is not edge and look.chosen.source == "refined again from " + edge.source
+    # refined from the chosen layout or from one of the new model's starts: which of those
+    # near-equal refinements rates highest depends on the CPU's BLAS (the learning's fits)
+    assert look.chosen is not edge and look.chosen.source.startswith("refined again from ")
     assert after.success_rate > before.success_rate + 0.1
     # what the simulator rated higher is more robust in truth, and it moved inwards
     assert _robustness(oracle.oracle, look.chosen.x) > _robustness(oracle.oracle, edge.x) + 0.1
