@@ -1,6 +1,8 @@
 """The second look: the model fitted again on the final choice's own simulations, the
 refinement run again, and the refined layout kept only when it wins by simulation."""
 
+import re
+
 import numpy as np
 
 from rgmcad.learning import Candidate, LearningSettings, second_look, verify_layout
@@ -169,6 +171,10 @@ def test_optimize_says_what_the_second_look_did_and_returns_that_layout(tmp_path
     assert sum(s["simulations_by_stage"].values()) == s["evaluations"]
     layout = json.loads((tmp_path / "layout.json").read_text())["vector"]
     report = (tmp_path / "report.md").read_text()
+    # the report's two figures say which one won, as the verdict does
+    before, after = re.search(r"errors neither had met, ([0-9.]+) against ([0-9.]+)",
+                              report).groups()
+    assert (float(after) > float(before)) is look["kept"]
     if look["kept"]:
         assert layout == look["check"]["vector"] == s["vector"]
         assert look["check"]["refined"] > look["check"]["before"]
@@ -185,3 +191,24 @@ def test_optimize_says_what_the_second_look_did_and_returns_that_layout(tmp_path
     assert "second look" not in plain.summary["simulations_by_stage"]
     assert "second_look" not in json.loads((tmp_path / "off" / "settings.json").read_text())[
         "settings"]
+
+
+def test_two_success_rates_are_written_so_the_higher_one_reads_higher():
+    # a report that says "0.29 against 0.29, so the refined layout was kept" reads as a
+    # mistake; rates of up to 4,096 copies, written, still order as they are
+    from rgmcad.runs.robustness import two_rates
+
+    rng = np.random.default_rng(5)
+    for _ in range(2000):
+        n, m = rng.integers(1, 4097, size=2)
+        a, b = rng.integers(0, n + 1) / n, rng.integers(0, m + 1) / m
+        if rng.random() < 0.3:  # near-ties, the case that matters
+            b = min(1.0, round(a * m + rng.integers(-2, 3)) / m) if m > 0 else a
+            b = max(b, 0.0)
+        sa, sb = two_rates(a, b)
+        assert len(sa) == len(sb) and len(sa.split(".")[1]) >= 2
+        if abs(a - b) >= 1e-5:  # closer than that, they read level (five decimals)
+            assert (float(sa) < float(sb)) == (a < b), (a, b, sa, sb)
+        assert not (a < b and float(sa) > float(sb)), (a, b, sa, sb)
+        if f"{a:.2f}" != f"{b:.2f}" or a == b:
+            assert (sa, sb) == (f"{a:.2f}", f"{b:.2f}")

@@ -13,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
-from rgmcad.runs.robustness import close_in_warning, failures_line
+from rgmcad.runs.robustness import close_in_warning, failures_line, two_rates
 from rgmcad.scene.perturbation import PhysicsRanges
 
 __all__ = ["REPORT_FILE", "SLICE_PLOT", "PROGRESS_PLOT", "ROBUSTNESS_PLOT", "ERROR_GRID",
@@ -134,10 +134,11 @@ def _second_look_words(look) -> str:
     c = look["check"]
     verdict = ("so the refined layout was kept" if look["kept"] else
                "so the layout chosen above was kept")
+    before, refined = two_rates(c["before"], c["refined"])
     return (" Then the model was fitted again on every simulation of the run, these "
             "candidates' included, and the refinement run again: both the layout chosen and "
-            f"the refined one were simulated at errors neither had met, {c['before']:.2f} "
-            f"against {c['refined']:.2f} ({c['valid_copies'][0]} and {c['valid_copies'][1]} "
+            f"the refined one were simulated at errors neither had met, {before} "
+            f"against {refined} ({c['valid_copies'][0]} and {c['valid_copies'][1]} "
             f"valid copies), {verdict}.")
 
 

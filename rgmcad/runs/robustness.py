@@ -56,7 +56,7 @@ from rgmcad.sim.run import Outcome
 
 __all__ = ["ETA", "EPS_GRID", "CLOSE_IN", "RobustnessCurve", "ball_samples", "wilson_interval",
            "local_robustness", "robustness_on", "figures", "failure_counts", "first_failure",
-           "failures_line", "plot_curves", "trapezoid_weights", "close_in_warning"]
+           "failures_line", "plot_curves", "trapezoid_weights", "close_in_warning", "two_rates"]
 
 ETA = 1.0 / 300.0
 """Offset added to every radius (the authors' ``1 / (10 N_STEPS)``)."""
@@ -281,6 +281,16 @@ def figures(curve: RobustnessCurve, physics: PhysicsRanges | None = None) -> dic
                           "curve": p.curve(), "simulations": p.simulations,
                           "failures": failure_counts(p)}
     return out
+
+
+def two_rates(a: float, b: float) -> tuple[str, str]:
+    """Two success rates written with two decimals, or with as many more (up to five) as it
+    takes to show which is higher: a report that says "0.29 against 0.29, so the second was
+    kept" reads as a mistake when the rates were 0.293 and 0.296."""
+    digits = 2
+    while digits < 5 and a != b and f"{a:.{digits}f}" == f"{b:.{digits}f}":
+        digits += 1
+    return f"{a:.{digits}f}", f"{b:.{digits}f}"
 
 
 def close_in_warning(figure: dict | None, point_to_evaluate: bool = False) -> str | None:

@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from rgmcad.errors import RgmcadError, UsageError
+from rgmcad.runs.robustness import two_rates
 from rgmcad.sim.run import Outcome
 
 __all__ = ["resolve_starts", "check_starts_valid", "starts_tag", "safe_name", "choose_layout"]
@@ -127,12 +128,13 @@ def choose_layout(recorded, result, starts: dict[str, np.ndarray] | None = None,
                          "valid_copies": [pair[0].n_valid, pair[1].n_valid],
                          "vector": [float(u) for u in pair[1].x]}}
     if c.centered:
-        source += (f", centred by simulation (success under errors "
-                   f"{v.centering_check[0].success_rate:.2f} -> {c.success_rate:.2f})")
+        before, after = two_rates(v.centering_check[0].success_rate, c.success_rate)
+        source += f", centred by simulation (success under errors {before} -> {after})"
     refined = final is not c
     if refined:
+        before, after = two_rates(look.check[0].success_rate, final.success_rate)
         source += (f", then refined again on the run's simulations (success under new "
-                   f"errors {look.check[0].success_rate:.2f} -> {final.success_rate:.2f})")
+                   f"errors {before} -> {after})")
     n_look = look.n_simulations if look is not None else 0
     return {"x": final.x, "source": source, "verified": v.verified,
             "is_optimum": c.source == "optimum" and not c.centered and not refined,
