@@ -121,6 +121,45 @@ def test_ours_sets_the_budget_and_every_baseline_and_given_layout_is_paired_with
     text = (tmp_path / "benchmark.md").read_text()
     assert "| layout 'solved' | 2 |" in text and "| layout 'mine' | 2 |" in text
 
+    # one more baseline later, on its own: it joins the table, paired with ours' trials,
+    # and every row measured before stays, unchanged
+    more = run_benchmark(SIMPLE, tmp_path, methods=("cma",), budget_sims=table["budget_sims"],
+                         trials=2, samples=1, workers=1)
+    rows = {r["method"]: r for r in _without_times(more)["rows"]}
+    assert [r["method"] for r in more["rows"]][:5] == ["ours", "full", "b1", "b2", "cma"]
+    assert set(rows) == {"cma", "ours", "full", "b1", "b2", *(r["method"] for r in
+                                                                (solved, mine_row))}
+    for r in _without_times(given)["rows"]:
+        assert rows[r["method"]] == r
+    pair = rows["cma"]["paired_vs_ours"]
+    diffs = [a - b for a, b in zip(rows["cma"]["rho_g"], ours["rho_g"], strict=True)]
+    assert pair["mean_difference"] == pytest.approx(sum(diffs) / 2)
+    assert set(more["references"]) == {"solved", "mine"}
+    assert "not run again: ours (factorised SPD)" in (tmp_path / "benchmark.md").read_text()
+
+
+def test_a_row_joins_the_table_only_under_the_same_protocol(tmp_path):
+    def bench(*extra):
+        argv = ["--build-dir", str(ROOT / "build" / "parts"), "benchmark", str(scenario),
+                "--out", str(tmp_path / "b"), "--trials", "2", "--budget-sims", "12",
+                "--samples", "2", "--workers", "1", "--json", *extra]
+        assert main(argv) == 0
+        return json.loads((tmp_path / "b" / TABLE_JSON).read_text())
+
+    scenario = tmp_path / "simple.toml"
+    scenario.write_text((ROOT / SIMPLE).read_text())
+    bench("--methods", "b1", "--reference", "solved")
+    table = bench("--methods", "cma")
+    assert [r["method"] for r in table["rows"]][:2] == ["b1", "cma"]
+    assert table["rows"][2]["label"] == "layout 'solved'"
+    assert [r["method"] for r in bench("--methods", "cma", "--samples", "3")["rows"]] == ["cma"]
+    # a given layout spends nothing: its row holds at any budget, B1's does not
+    assert [r["label"] for r in bench("--methods", "cma", "--budget-sims", "10")["rows"]] \
+        == ["CMA-ES", "layout 'solved'"]
+    assert [r["method"] for r in bench("--methods", "cma", "--trials", "3")["rows"]] == ["cma"]
+    scenario.write_text(scenario.read_text() + "\n# edited\n")  # another scenario file
+    assert [r["method"] for r in bench("--methods", "b2")["rows"]] == ["b2"]
+
 
 @pytest.mark.parametrize("argv, word", [
     (["benchmark", "simple", "--methods", "b1"], "--budget-sims"),

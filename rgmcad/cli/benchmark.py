@@ -40,7 +40,8 @@ def configure(p: argparse.ArgumentParser) -> None:
                    "an interrupted benchmark")
     p.add_argument("--methods", type=_methods, default=None, metavar="M1,M2",
                    help="among ours,full,b1,b2,b3,cma (default: ours,b1,b2,b3,cma; full: "
-                   "ours with one global model, the paper's Fig. 16)")
+                   "ours with one global model, the paper's Fig. 16); rows other calls "
+                   "finished in --out under the same protocol stay in the table")
     p.add_argument("--trials", type=int, default=10, help="runs of each method, seeds SEED.."
                    "SEED+T-1 (default 10, as the paper)")
     p.add_argument("--seed", type=int, default=0, help="base seed (default 0)")

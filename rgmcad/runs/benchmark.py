@@ -32,6 +32,11 @@ their seed, so a benchmark killed at any point and run again gives the same tabl
     out/eval/layout-{NAME}-{digest}/t{i}/   a reference layout's evaluation at trial i
     out/benchmark.md, benchmark.json, robustness.png
 
+The table holds every row the folder has finished under the call's protocol (scenario file,
+budget, seeds, samples, physical errors), not only the methods asked for: a later call with
+``--methods cma --budget-sims B`` adds CMA-ES's row to those an earlier call measured, paired
+with ours' trials if they are there.
+
 Times: ``time_s`` is the simulations' own seconds (from the journal, so a resumed trial
 counts what its killed predecessor simulated) plus the method's computation outside the
 simulations in the call that finished it: a cost on one core, independent of ``workers``.
@@ -206,6 +211,48 @@ def evaluate_trial(identity: dict, run_dir: Path, problem, executor, x, samples:
     return out
 
 
+def _earlier_rows(out: Path, base: dict, budget: int, seeds: Sequence[int], samples: int,
+                  physics: PhysicsRanges | None, skip) -> dict[str, tuple]:
+    """Rows an earlier call left finished in ``out`` under this call's protocol (the same
+    scenario file, budget, seeds, samples per radius and physical errors), so that running
+    one more method adds a row instead of replacing the table: tag -> (label, trials,
+    evaluations). A method or layout is taken only when every seed's trial and evaluation
+    are finished and their identities match; anything else is left out, never run."""
+    wanted = None if physics is None else physics.to_json()
+    tags = [m if m in LEARNERS else f"{m}-B{budget}" for m in METHODS]
+    layouts = sorted(p.name for p in (out / "eval").glob("layout-*") if p.is_dir())
+    rows: dict[str, tuple] = {}
+    for tag in (*tags, *layouts):
+        layout = tag.startswith("layout-")
+        method = tag if layout else tag.split("-B")[0]
+        if method in skip:
+            continue
+        trials, evals = [], []
+        for s in seeds:
+            if layout:
+                trial = {"method": tag, "seed": s, "budget_sims": None, "simulations": None,
+                         "time_s": None}
+            else:
+                trial = _read(out / tag / f"t{s}" / TRIAL)
+                if trial is None or trial.get("seed") != s:
+                    break  # the evaluation's identity below checks the scenario and parts
+            run = out / "eval" / tag / f"t{s}"
+            done, ident = _read(run / TRIAL), _read(run / "settings.json")
+            trial.setdefault("vector", (done or {}).get("vector"))
+            expected = {**base, "kind": "evaluation", "vector": trial["vector"], "seed": s,
+                        "samples": samples}
+            if (done is None or ident != json.loads(json.dumps(expected))
+                    or wanted not in (None, (done.get("physics") or {}).get("ranges"))):
+                break
+            trials.append(trial)
+            evals.append(done)
+        else:
+            name = tag[len("layout-"):-9] if layout else None  # layout-NAME-DIGEST8
+            label = LABELS[method] if name is None else f"layout {name!r}"
+            rows[method] = (label, trials, evals, name)
+    return rows
+
+
 def _references(scenario, problem, layouts: Sequence[str]) -> dict[str, np.ndarray]:
     """Name -> vector of each ``--reference`` layout, refused in one line when unknown,
     unreadable, outside the free ranges or overlapping."""
@@ -281,7 +328,7 @@ def run_benchmark(scenario_path, out_dir, *, methods=DEFAULT_METHODS, trials: in
         found[tag] = [{"method": tag, "seed": s, "vector": [float(v) for v in x],
                        "budget_sims": None, "simulations": None, "time_s": None}
                       for s in seeds]
-    rows = (*methods, *(t for t in tags if t not in methods))
+    refs = tuple(t for t in tags if t not in methods)
     evaluations: dict[str, list[dict]] = {}
     try:
         for m in methods:
@@ -292,7 +339,7 @@ def run_benchmark(scenario_path, out_dir, *, methods=DEFAULT_METHODS, trials: in
                 found.setdefault(m, []).append(_baseline(
                     m, {**base, "kind": "baseline", "method": m, "seed": s, "budget": budget},
                     out / tags[m] / f"t{s}", problem, executor, budget, s, progress))
-        for m in rows:
+        for m in (*methods, *refs):
             for s, trial in zip(seeds, found[m], strict=True):
                 progress.stage(f"evaluate {m} t{s}")
                 identity = {**base, "kind": "evaluation", "vector": trial["vector"],
@@ -302,9 +349,19 @@ def run_benchmark(scenario_path, out_dir, *, methods=DEFAULT_METHODS, trials: in
                     trial["vector"], samples, s, progress, physics))
     finally:
         executor.close()
+    earlier = _earlier_rows(out, base, budget, seeds, samples, physics,
+                            skip={*methods, *refs})
+    for tag, (label, trials, evals, _) in earlier.items():
+        labels[tag], found[tag], evaluations[tag] = label, trials, evals
+    more_methods = tuple(t for t, row in earlier.items() if row[3] is None)
+    more_layouts = {row[3]: t for t, row in earlier.items() if row[3] is not None}
+    rows = (*sorted((*methods, *more_methods), key=METHODS.index), *refs,
+            *more_layouts.values())
     table = build_table(scenario.name, rows, labels, seeds, budget, samples, found,
                         evaluations)
     table["references"] = {name: [float(v) for v in x] for name, x in given.items()}
+    table["references"].update({n: found[t][0]["vector"] for n, t in more_layouts.items()})
+    table["earlier_rows"] = [labels[t] for t in earlier]
     table["physics"] = None if physics is None else physics.to_json()
     table["wall_time"] = time.perf_counter() - start
     write_json_atomic(out / TABLE_JSON, table)

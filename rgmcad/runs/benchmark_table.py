@@ -114,6 +114,10 @@ def table_markdown(table: dict) -> str:
         lines += ["Placement + physics: the same layouts simulated with physical errors "
                   f"(friction +-{phys['friction']:.0%}, mass +-{phys['mass']:.0%}, "
                   f"restitution +-{phys['restitution']:.0%}), common draws across methods.", ""]
+    if table.get("earlier_rows"):
+        lines += ["Rows finished by earlier calls in this folder under the same protocol (the "
+                  "same scenario file, budget, trials, samples and physical errors), not run "
+                  "again: " + ", ".join(table["earlier_rows"]) + ".", ""]
     head = "| method | trials | rho_g (mean +- s.e.) | paired diff. vs ours (p) | "
     rule = "|---|---|---|---|"
     if phys:
