@@ -121,10 +121,10 @@ def test_ours_sets_the_budget_and_every_baseline_and_given_layout_is_paired_with
     text = (tmp_path / "benchmark.md").read_text()
     assert "| layout 'solved' | 2 |" in text and "| layout 'mine' | 2 |" in text
 
-    # one more baseline later, on its own: it joins the table, paired with ours' trials,
-    # and every row measured before stays, unchanged
-    more = run_benchmark(SIMPLE, tmp_path, methods=("cma",), budget_sims=table["budget_sims"],
-                         trials=2, samples=1, workers=1)
+    # one more baseline later, on its own: it gets the budget of ours' finished trials,
+    # joins the table, paired with them, and every row measured before stays, unchanged
+    more = run_benchmark(SIMPLE, tmp_path, methods=("cma",), trials=2, samples=1, workers=1)
+    assert more["budget_sims"] == table["budget_sims"]
     rows = {r["method"]: r for r in _without_times(more)["rows"]}
     assert [r["method"] for r in more["rows"]][:5] == ["ours", "full", "b1", "b2", "cma"]
     assert set(rows) == {"cma", "ours", "full", "b1", "b2", *(r["method"] for r in

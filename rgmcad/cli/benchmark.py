@@ -46,7 +46,8 @@ def configure(p: argparse.ArgumentParser) -> None:
                    "SEED+T-1 (default 10, as the paper)")
     p.add_argument("--seed", type=int, default=0, help="base seed (default 0)")
     p.add_argument("--budget-sims", type=int, default=None, metavar="B",
-                   help="simulations per baseline run (default: the mean our method used)")
+                   help="simulations per baseline run (default: the mean our method used, "
+                   "in this call or in --out's finished trials)")
     p.add_argument("--samples", type=int, default=50, help="valid layouts per radius in the "
                    "evaluation of each layout (default 50; 30 radii)")
     p.add_argument("--ours-budget", type=budget_name, default="default",

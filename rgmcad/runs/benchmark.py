@@ -211,6 +211,19 @@ def evaluate_trial(identity: dict, run_dir: Path, problem, executor, x, samples:
     return out
 
 
+def _finished_ours(out: Path, seeds: Sequence[int], digest: str) -> list[dict] | None:
+    """Ours' trials an earlier call finished in ``out`` for every seed of this scenario file,
+    or None."""
+    trials = []
+    for s in seeds:
+        trial = _read(out / "ours" / f"t{s}" / TRIAL)
+        ident = _read(out / "ours" / f"t{s}" / "settings.json") or {}
+        if trial is None or trial.get("seed") != s or ident.get("scenario_sha256") != digest:
+            return None
+        trials.append(trial)
+    return trials
+
+
 def _earlier_rows(out: Path, base: dict, budget: int, seeds: Sequence[int], samples: int,
                   physics: PhysicsRanges | None, skip) -> dict[str, tuple]:
     """Rows an earlier call left finished in ``out`` under this call's protocol (the same
@@ -295,17 +308,19 @@ def run_benchmark(scenario_path, out_dir, *, methods=DEFAULT_METHODS, trials: in
     check_workers(workers)
     if budget_sims is not None:
         check_range(budget_sims, 1, 10**7, "--budget-sims", "a number of simulations")
-    elif "ours" not in methods:
-        raise UsageError("--budget-sims", "", "needed when ours is not among --methods (the "
-                         "budget is otherwise the mean number of simulations ours used)")
     scenario = load_scenario(scenario_path, parts_dir=parts_dir)
     digest = scenario_digest(scenario_path)
+    seeds = [seed + i for i in range(trials)]
+    ours_before = None if "ours" in methods else _finished_ours(Path(out_dir), seeds, digest)
+    if budget_sims is None and "ours" not in methods and ours_before is None:
+        raise UsageError("--budget-sims", "", "needed when ours is not among --methods and "
+                         "has not finished these trials in --out (the budget is otherwise the "
+                         "mean number of simulations ours used)")
     problem = ScenarioProblem(scenario_path, build_dir, parts_dir)
     given = _references(scenario, problem, references)  # refused before any folder
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     start = time.perf_counter()
-    seeds = [seed + i for i in range(trials)]
     found: dict[str, list[dict]] = {}
     for m in (m for m in methods if m in LEARNERS):
         for s in seeds:
@@ -314,7 +329,7 @@ def run_benchmark(scenario_path, out_dir, *, methods=DEFAULT_METHODS, trials: in
                 m, scenario_path, out, s, ours_budget, ours_settings, workers, build_dir,
                 progress, scheduler, parts_dir))
     budget = budget_sims if budget_sims is not None else int(
-        np.floor(np.mean([t["budget_sims"] for t in found["ours"]])))
+        np.floor(np.mean([t["budget_sims"] for t in found.get("ours", ours_before)])))
     executor = make_executor(workers, problem.context, scheduler=scheduler_from_env(scheduler),
                              payload=problem.payload)
     base = {"format": 1, "scenario": scenario.name, "scenario_sha256": digest}
