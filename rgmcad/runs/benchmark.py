@@ -228,9 +228,10 @@ def _earlier_rows(out: Path, base: dict, budget: int, seeds: Sequence[int], samp
                   physics: PhysicsRanges | None, skip) -> dict[str, tuple]:
     """Rows an earlier call left finished in ``out`` under this call's protocol (the same
     scenario file, budget, seeds, samples per radius and physical errors), so that running
-    one more method adds a row instead of replacing the table: tag -> (label, trials,
-    evaluations). A method or layout is taken only when every seed's trial and evaluation
-    are finished and their identities match; anything else is left out, never run."""
+    one more method adds a row instead of replacing the table: method name, or a layout's
+    folder tag, -> (label, trials, evaluations, layout name or None). A method or layout is
+    taken only when every seed's trial and evaluation are finished and their identities
+    match; anything else is left out, never run."""
     wanted = None if physics is None else physics.to_json()
     tags = [m if m in LEARNERS else f"{m}-B{budget}" for m in METHODS]
     layouts = sorted(p.name for p in (out / "eval").glob("layout-*") if p.is_dir())
