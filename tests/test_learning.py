@@ -826,6 +826,34 @@ def test_exploration_parents_break_ties_by_age_and_once_stalled_by_recency():
 
 
 @pytest.mark.parametrize("seed", [0, 1, 2])
+def test_spaced_parents_keep_apart_while_enough_samples_do(seed):
+    """With a spacing, the parents are the most successful samples that keep that far apart
+    (newest first on ties); only when too few do, the nearest ones fill the places left."""
+    rng = np.random.default_rng(seed)
+    X = rng.random((400, 6))
+    counts = rng.integers(0, 4, 400)
+    plain = exploration_parents(counts, 30, newest_first=True)
+    assert sorted(exploration_parents(counts, 30, True, X=X, spacing=0.0)) == sorted(plain)
+    spaced = exploration_parents(counts, 30, True, X=X, spacing=0.5)
+    assert len(set(spaced.tolist())) == 30
+    gaps = np.linalg.norm(X[spaced][:, None] - X[spaced][None], axis=2)
+    assert gaps[np.triu_indices(30, 1)].min() >= 0.5
+    # each one taken is the most successful, then newest, sample not within 0.5 of those
+    # taken before it
+    for k, i in enumerate(spaced):
+        far = np.all(np.linalg.norm(X - X[spaced[:k]][:, None], axis=2) >= 0.5, axis=0) \
+            if k else np.ones(400, bool)
+        best = max(np.flatnonzero(far), key=lambda j: (counts[j], j))
+        assert i == best
+    # a cloud too tight to hold 30 parents that far apart: every place is filled all the same,
+    # the best samples first
+    tight = 0.5 + 0.01 * rng.random((400, 6))
+    filled = exploration_parents(counts, 30, True, X=tight, spacing=0.5)
+    assert len(set(filled.tolist())) == 30
+    assert sorted(counts[filled]) == sorted(counts[plain])
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
 def test_on_a_plateau_the_exploration_wanders_instead_of_circling_its_first_samples(seed):
     """Half the cube gets the first event and nothing gets the second: every sample there
     ties, so after a few batches no draw changes the parents: the exploration has stalled.
@@ -849,6 +877,13 @@ def test_on_a_plateau_the_exploration_wanders_instead_of_circling_its_first_samp
     paper = explore(plateau, settings.replace(exploration_stall_batches=0),
                     np.random.default_rng(seed))
     assert paper.stalled_at is None and reach(paper) < 0.35
+    # parents kept apart once stalled (off by default): the same exploration up to the stall
+    spaced = explore(plateau, settings.replace(exploration_stall_spacing=1.0),
+                     np.random.default_rng(seed))
+    same = settings.n_initial + settings.exploration_batch * res.stalled_at
+    assert spaced.stalled_at == res.stalled_at
+    np.testing.assert_array_equal(spaced.X[:same], res.X[:same])
+    assert not np.array_equal(spaced.X[: len(res.X)], res.X[: len(spaced.X)])
 
 
 def test_exploration_step_is_the_papers_wherever_draws_keep_their_progress():

@@ -17,6 +17,7 @@ import numpy as np
 from scipy.stats import qmc
 
 from .oracles import Label, Problem
+from .parents import exploration_parents
 from .settings import LearningSettings
 
 __all__ = [
@@ -268,7 +269,8 @@ def explore(
        that count go to the newest samples for the rest of the exploration
        (:func:`exploration_parents`): the mixtures then follow their latest draws over the
        level they reached instead of circling the oldest samples there for good
-       (docs/decisions.md, "Exploration stalls").
+       (docs/decisions.md, "Exploration stalls"). With ``exploration_stall_spacing`` > 0
+       the parents taken then keep about a step apart (:func:`exploration_parents`).
 
     When no selected sample has any successful event (the paper's weights would be 0/0),
     the iteration continues the Sobol sequence instead: with no partial success to grow
@@ -360,7 +362,12 @@ def explore(
             drawing = False  # wait for the batches in flight, then stop
             continue
         counts = np.asarray(n_succ, dtype=float)
-        top = exploration_parents(counts, s.n_successes, newest_first=stalled_at is not None)
+        X_all = np.vstack(Xs)
+        scale = float(np.exp(log_scale))
+        spacing = (s.exploration_stall_spacing * np.sqrt(s.exploration_variance * d) * scale
+                   if stalled_at is not None else 0.0)
+        top = exploration_parents(counts, s.n_successes, newest_first=stalled_at is not None,
+                                  X=X_all, spacing=spacing)
         w = counts[top]
         parent_counts = None
         if w.sum() > 0:
@@ -371,9 +378,8 @@ def explore(
                 stalled_at = k  # from the next batch on: newest first
                 logger.info("exploration stalled at iteration %d: its parents did not change "
                             "for %d batches", k, unchanged)
-            scale = float(np.exp(log_scale))
             cands, comps = _draw_mixture(
-                np.vstack(Xs)[top], w, s.exploration_variance * scale**2,
+                X_all[top], w, s.exploration_variance * scale**2,
                 s.max_draws_factor * s.exploration_batch, rng,
             )
             rate = mixture_valid / mixture_tested if mixture_tested else 1.0
@@ -402,26 +408,6 @@ def explore(
         )
     return Exploration(X, tuple(labels), k, n_tested, int(n_global), tuple(keep_rates),
                        tuple(step_scales), stalled_at)
-
-
-def exploration_parents(counts: np.ndarray, n: int, newest_first: bool = False) -> np.ndarray:
-    """Indices of the samples the next exploration mixture grows around: the ``n`` with the
-    most successful events; ties at the lowest count taken go to the oldest (the paper's
-    order) or, with ``newest_first`` (a stalled exploration), to the most recent.
-
-    Why the second: with the oldest first, a draw that only equals the lowest count never
-    gets in, so once the top samples stop improving every later draw is made around the same
-    ``n`` points. With the newest first the mixtures follow their own latest draws and the
-    population wanders over the level it reached (docs/decisions.md, "Exploration stalls").
-    """
-    counts = np.asarray(counts)
-    top = np.argsort(-counts, kind="stable")[: min(n, len(counts))]
-    if newest_first and len(top):
-        cut = counts[top[-1]]
-        above = top[counts[top] > cut]
-        at_cut = np.flatnonzero(counts == cut)[::-1][: len(top) - len(above)]
-        top = np.concatenate([above, at_cut])
-    return top
 
 
 def _sobol_valid(
