@@ -5,6 +5,7 @@ and the pieces they are made of (run store, robustness estimator)."""
 import json
 import re
 import shutil
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -15,7 +16,7 @@ from rgmcad.errors import RunDirectoryError
 from rgmcad.learning import LearningSettings
 from rgmcad.runs.problem import ScenarioProblem, SimRecord
 from rgmcad.runs.robustness import EPS_GRID, ball_samples, wilson_interval
-from rgmcad.runs.store import SIMULATIONS, RunStore, run_identity
+from rgmcad.runs.store import _ADDED_LATER, SIMULATIONS, RunStore, run_identity
 from rgmcad.runs.workflow import optimize_scenario
 from rgmcad.sim.run import Outcome
 from tests._support import TINY, run_cli
@@ -86,6 +87,21 @@ def test_resuming_an_interrupted_run_gives_the_same_result(reference, tmp_path):
     # a finished run is not recomputed
     again = _optimize(run)
     assert again.finished_before and again.summary["vector"] == ref["vector"]
+
+
+def test_a_finished_run_moved_to_another_folder_names_its_new_place(reference, tmp_path, capsys):
+    # the user moves (or copies) a finished run directory and asks for it again there
+    ref_run, ref = reference
+    moved = tmp_path / "moved"
+    shutil.copytree(ref_run, moved)
+    again = _optimize(moved)
+    assert again.finished_before and again.summary["vector"] == ref["vector"]
+    assert again.summary["run"] == str(moved)
+    assert again.summary["layout"] == str(moved / "layout.json")
+    assert again.summary["start"]["layout"] == str(moved / "start.json")
+    show(again.summary, as_json=False)
+    out = capsys.readouterr().out
+    assert str(moved / "report.html") in out and str(ref_run) not in out
 
 
 def test_two_workers_give_the_same_result_as_one(reference, tmp_path):
@@ -208,6 +224,26 @@ def test_a_run_directory_made_before_a_setting_was_added_still_resumes(tmp_path)
     with pytest.raises(RunDirectoryError, match="unmodelled_at: run has nothing, command asks "
                        "'median'"):
         RunStore(tmp_path, run_identity("s", "0" * 64, 0, TINY.replace(unmodelled_at="median")))
+
+
+OLDER_SETTINGS = Path(__file__).parent / "data" / "older_settings"
+
+
+@pytest.mark.parametrize("budget_name", ["default", "small"])
+@pytest.mark.parametrize("snapshot", sorted(OLDER_SETTINGS.glob("*.json")), ids=lambda p: p.stem)
+def test_a_run_directory_of_an_older_rgmcad_resumes_after_an_upgrade(tmp_path, snapshot,
+                                                                     budget_name):
+    # each file: the settings.json that rgmcad wrote, for each budget, just before a setting
+    # was added. The settings that run ran with are the ones it names plus, for every setting
+    # added since, the value that gives the code before it; today's rgmcad, asked for those,
+    # must open the directory (a setting added without saying which value gives the code
+    # before would refuse every older run directory)
+    stored = json.loads(snapshot.read_text())[budget_name]
+    named = {k: tuple(v) if isinstance(v, list) else v for k, v in stored["settings"].items()}
+    ran = LearningSettings(**{**_ADDED_LATER, **named})
+    (tmp_path / "settings.json").write_text(json.dumps(stored))
+    RunStore(tmp_path, run_identity(stored["scenario"], stored["scenario_sha256"],
+                                    stored["seed"], ran)).close()
 
 
 class _LoggingPool:

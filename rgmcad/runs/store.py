@@ -68,9 +68,10 @@ MODEL = "model.pkl"
 REJECTED = "simulations.rejected.jsonl"
 FORMAT = 1
 
-# LearningSettings fields left out of a run's identity: those that change how fast it goes,
-# never what it finds; and fields added later, at the value older runs had (still resumable)
-_NOT_IDENTITY, _ADDED_LATER = ("n_jobs",), {"unmodelled_at": "start", "second_look": False}
+# LearningSettings fields outside a run's identity (speed only), and fields added later at the
+# value that gives the code before them (every new one: older run directories stay resumable)
+_NOT_IDENTITY, _ADDED_LATER = ("n_jobs",), {"unmodelled_at": "start", "second_look": False,
+                                            "exploration_stall_spacing": 0.0}
 
 
 def run_identity(scenario_name: str, scenario_sha256: str, seed: int, settings,
@@ -324,8 +325,7 @@ _MISSING = _Missing()
 
 
 def _differences(a, b, prefix: str = "") -> list[tuple[str, Any, Any]]:
-    """Keys (dotted) whose values differ between two JSON objects; a key only one of them
-    has counts even when the other side's value is None."""
+    """Keys (dotted) whose values differ; a key only one side has counts, even against None."""
     if isinstance(a, dict) and isinstance(b, dict):
         out = []
         for k in list(a) + [k for k in b if k not in a]:

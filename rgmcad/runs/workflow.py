@@ -76,18 +76,9 @@ class RunProgress:
 
 @dataclass(frozen=True)
 class OptimizationRun:
-    """What :func:`optimize_scenario` did.
-
-    Attributes
-    ----------
-    run_dir : Path
-    summary : dict
-        The run's ``result.json``.
-    finished_before : bool
-        The run directory held a finished run: nothing was computed.
-    wall_time : float
-        Seconds this call took.
-    """
+    """What :func:`optimize_scenario` did: the run directory, its ``result.json``
+    (``summary``), whether it held a finished run (``finished_before``: nothing was computed)
+    and the seconds this call took (``wall_time``)."""
 
     run_dir: Path
     summary: dict
@@ -194,7 +185,8 @@ def optimize_scenario(
                   events=list(scenario.events)) as store:
         summary = store.read_result()  # None unless finished, with its model intact
         if summary is not None and _readable_json(run_dir / LAYOUT_FILE):
-            return OptimizationRun(run_dir, summary, True, time.perf_counter() - start)
+            return OptimizationRun(run_dir, _placed_in(summary, run_dir), True,
+                                   time.perf_counter() - start)
         from rgmcad.learning import NoValidLayoutError, learn_and_optimize
         from rgmcad.learning.parallel import jobs_on
 
@@ -267,6 +259,12 @@ def _at_layout(model, result, chosen: dict, x: np.ndarray):
         tol = placement_tolerance(model, x, result.settings)
     weakest, weakest_probability = model.weakest_link(x)
     return per_event, probability, weakest, weakest_probability, tol
+
+
+def _placed_in(summary: dict, run_dir: Path) -> dict:
+    """A finished run's summary naming its files in ``run_dir`` (it may have been moved)."""
+    start = {**summary.get("start", {}), "layout": str(run_dir / START_FILE)}
+    return {**summary, "run": str(run_dir), "layout": str(run_dir / LAYOUT_FILE), "start": start}
 
 
 def _readable_json(path: Path) -> bool:
