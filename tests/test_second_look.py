@@ -193,6 +193,44 @@ def test_optimize_says_what_the_second_look_did_and_returns_that_layout(tmp_path
         "settings"]
 
 
+def test_looks_go_on_while_they_move_the_layout_and_the_first_is_the_same(tmp_path):
+    # the user asks for up to four looks: the first is the one a single look makes; another
+    # follows only a look that kept its refined layout, each at errors of its own; the layout
+    # returned is the last one kept, and the summary and report say each look's verdict
+    import json
+
+    from rgmcad.learning.settings import budget
+    from rgmcad.runs.workflow import optimize_scenario
+    from rgmcad.shipped import scenario_path
+
+    one = optimize_scenario(scenario_path("simple"), seed=0, settings=budget("small"),
+                            run_dir=tmp_path / "one", workers=1).summary
+    run = optimize_scenario(scenario_path("simple"), seed=0,
+                            settings=budget("small").replace(second_look_rounds=4),
+                            run_dir=tmp_path / "four", workers=1).summary
+    assert one["second_look"]["kept"]  # measured: 0.00 -> 0.40 (else this test tests nothing)
+    assert run["second_look"] == one["second_look"]
+    looks = [run["second_look"], *run.get("more_looks", [])]
+    assert len(looks) >= 2
+    assert all(look["kept"] for look in looks[:-1])  # the looks stop at the first that keeps
+    assert len(looks) == 4 or not looks[-1]["kept"]  # its layout, or after four
+    for look in looks:
+        if look["kept"]:
+            assert look["check"]["refined"] > look["check"]["before"]
+    last_kept = [look for look in looks if look["kept"]][-1]
+    assert run["vector"] == last_kept["check"]["vector"]
+    assert json.loads((tmp_path / "four" / "layout.json").read_text())["vector"] == run["vector"]
+    assert run["source"].count(", and again (") == sum(look["kept"] for look in looks[1:])
+    assert run["simulations_by_stage"]["second look"] == sum(look["simulations"]
+                                                             for look in looks)
+    report = (tmp_path / "four" / "report.md").read_text()
+    assert report.count(" A look again") == len(looks) - 1
+    # one look is the default, and a run directory of it is another run's
+    assert "second_look_rounds" not in json.loads((tmp_path / "one" / "settings.json")
+                                                  .read_text())["settings"]
+    assert "more_looks" not in one
+
+
 def test_two_success_rates_are_written_so_the_higher_one_reads_higher():
     # a report that says "0.29 against 0.29, so the refined layout was kept" reads as a
     # mistake; rates of up to 4,096 copies, written, still order as they are

@@ -25,9 +25,11 @@ from .verify import Candidate, nudged, outcome, race_at_verify_errors
 
 __all__ = ["SecondLook", "second_look"]
 
-# the errors of the check: independent of the final choice's (scramble 0 is theirs, 1 the
-# errors a race adds while copies are mostly invalid)
-_CHECK_SCRAMBLES = (2, 3)
+# the errors of a look's check: independent of the final choice's (scramble 0 is theirs, 1
+# the errors a race adds while copies are mostly invalid) and of every earlier look's (the
+# layout a look kept reads high at the errors it won on)
+def _check_scrambles(look: int) -> tuple[int, int]:
+    return 2 + 2 * look, 3 + 2 * look
 
 
 @dataclass(frozen=True)
@@ -52,12 +54,13 @@ class SecondLook:
 
 
 def second_look(problem, model_settings, X: np.ndarray, labels, chosen: Candidate, simulate,
-                rng: np.random.Generator) -> SecondLook:
+                rng: np.random.Generator, look: int = 0) -> SecondLook:
     """Refit on ``X`` (n, d) with ``labels`` (every simulation of the run), refine from
     ``chosen`` and the new model's starts, and race the refined layout with the best
     objective that succeeds (or one a hair from it) against ``chosen`` (see the module
     docstring). ``problem`` gives ``event_parents``, ``any_joins``, ``validity`` and
-    ``penetration``; ``simulate(P) -> labels``; ``rng`` is the fit's only randomness."""
+    ``penetration``; ``simulate(P) -> labels``; ``rng`` is the fit's only randomness;
+    ``look`` counts the looks before this one (each checks at errors of its own)."""
     s = model_settings
     X = np.asarray(X, dtype=float)
 
@@ -97,6 +100,6 @@ def second_look(problem, model_settings, X: np.ndarray, labels, chosen: Candidat
     unrated = dict(success_rate=float("nan"), n_valid=0)
     tested, n_tested, best_index, _ = race_at_verify_errors(
         [replace(chosen, **unrated), replace(refined, **unrated)], s, simulate,
-        problem.validity, scrambles=_CHECK_SCRAMBLES)
+        problem.validity, scrambles=_check_scrambles(look))
     before, after = tested
     return SecondLook(after if best_index == 1 else chosen, (before, after), n_sims + n_tested)

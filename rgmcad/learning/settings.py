@@ -280,6 +280,9 @@ class LearningSettings:
         the run (the choice's own included), refine again, and keep the refined layout only
         if it succeeds more often than the chosen one at ``verify_samples`` errors new to
         both (:mod:`rgmcad.learning.second_look`). Needs ``verify_samples`` > 0.
+    second_look_rounds : int, default 1
+        Looks at most: another runs, on every simulation so far, only after a look whose
+        refined layout was kept. Added by rgmcad (docs/decisions.md, "Looking again").
     tolerance_ratio : float, default 0.9
         Placement tolerance: how far each coordinate may move before the predicted success
         probability drops below ``tolerance_ratio`` times its value at the optimum.
@@ -349,28 +352,25 @@ class LearningSettings:
     centering_hit_rate: float = 0.3
     centering_check_samples: int = 128
     second_look: bool = True
+    second_look_rounds: int = 1
     # Placement tolerance
     tolerance_ratio: float = 0.9
     tolerance_step: float = 0.005
     tolerance_bisections: int = 12
 
     def __post_init__(self):
-        positive_ints = (
-            "n_initial", "n_successes", "exploration_batch", "max_draws_factor", "cv_folds",
-            "search_halving", "search_min_train",
-            "calibration_folds", "active_batch", "mi_neighbors", "optimizer_max_eval",
-            "placement_samples", "verify_candidates", "refine_starts", "centering_batch",
-            "centering_check_samples",
-        )
-        for name in positive_ints:
+        for name in ("n_initial", "n_successes", "exploration_batch", "max_draws_factor",
+                     "cv_folds", "search_halving", "search_min_train", "calibration_folds",
+                     "active_batch", "mi_neighbors", "optimizer_max_eval", "placement_samples",
+                     "verify_candidates", "refine_starts", "centering_batch",
+                     "centering_check_samples", "second_look_rounds"):
             value = getattr(self, name)
             if int(value) != value or value < 1:
                 raise ValueError(f"LearningSettings.{name} must be a positive integer, got "
                                  f"{value!r}")
         for name in ("exploration_max_iter", "exploration_lag", "exploration_stall_batches",
-                     "active_max_iter",
-                     "tolerance_bisections", "mi_null_permutations", "verify_samples",
-                     "centering_simulations"):
+                     "active_max_iter", "tolerance_bisections", "mi_null_permutations",
+                     "verify_samples", "centering_simulations"):
             value = getattr(self, name)
             if int(value) != value or value < 0:
                 raise ValueError(f"LearningSettings.{name} must be a non-negative integer, "

@@ -118,7 +118,8 @@ def report_markdown(scenario, s: dict, low, high) -> str:
                             "so the nearest of the few layouts drawn within 1/300 of it that "
                             "succeeded took its place." for c in s["verification"]
                             if c.get("moved_from"))
-                  + _second_look_words(s.get("second_look")), "",
+                  + _second_look_words(s.get("second_look"))
+                  + "".join(_look_again_words(look) for look in s.get("more_looks", [])), "",
                   "| candidate | success under errors | valid copies |",
                   "|---|---|---|"]
         for c in s["verification"]:
@@ -140,6 +141,17 @@ def _second_look_words(look) -> str:
             f"the refined one were simulated at errors neither had met, {before} "
             f"against {refined} ({c['valid_copies'][0]} and {c['valid_copies'][1]} "
             f"valid copies), {verdict}.")
+
+
+def _look_again_words(look) -> str:
+    if not look["check"]:
+        return " A look again moved nothing."
+    c = look["check"]
+    before, refined = two_rates(c["before"], c["refined"])
+    return (" A look again (the model fitted on every simulation so far, refined, both "
+            f"simulated at errors new to both): {before} against {refined} "
+            f"({c['valid_copies'][0]} and {c['valid_copies'][1]} valid copies), so the "
+            + ("refined layout was kept." if look["kept"] else "layout before it was kept."))
 
 
 def _race_words(stages: list[int], planned: int | None) -> str:

@@ -99,13 +99,19 @@ def choose_layout(recorded, result, starts: dict[str, np.ndarray] | None = None,
                       recorded.validity, result.settings, starts=starts,
                       rng=np.random.default_rng([seed, _CENTERING_STREAM]),
                       exploration_successes=result.n_exploration_successes)
-    c, look = v.chosen, None
-    if v.verified and result.settings.second_look and result.settings.verify_samples:
+    c, final, looks, kept = v.chosen, v.chosen, [], []
+    s = result.settings
+    if v.verified and s.second_look and s.verify_samples:
         if on_stage is not None:
             on_stage("second look")
-        look = second_look(recorded, result.settings, np.vstack(seen_X), seen, c, simulate,
-                           np.random.default_rng([seed, _SECOND_LOOK_STREAM]))
-    final = look.chosen if look is not None else c
+        for k in range(s.second_look_rounds):  # another look only after one that moved
+            stream = [seed, _SECOND_LOOK_STREAM, k] if k else [seed, _SECOND_LOOK_STREAM]
+            looks.append(second_look(recorded, s, np.vstack(seen_X), seen, final, simulate,
+                                     np.random.default_rng(stream), look=k))
+            kept.append(looks[-1].chosen is not final)
+            if not kept[-1]:
+                break
+            final = looks[-1].chosen
     optimum = Outcome(v.optimum.outcome)
     if not v.verified:
         source = (f"optimum, unverified: its simulation gave {optimum} and no "
@@ -131,11 +137,13 @@ def choose_layout(recorded, result, starts: dict[str, np.ndarray] | None = None,
         before, after = two_rates(v.centering_check[0].success_rate, c.success_rate)
         source += f", centred by simulation (success under errors {before} -> {after})"
     refined = final is not c
-    if refined:
-        before, after = two_rates(look.check[0].success_rate, final.success_rate)
-        source += (f", then refined again on the run's simulations (success under new "
-                   f"errors {before} -> {after})")
-    n_look = look.n_simulations if look is not None else 0
+    for k, look in enumerate(looks):
+        if kept[k]:
+            before, after = two_rates(look.check[0].success_rate, look.chosen.success_rate)
+            source += (f", then refined again on the run's simulations (success under new "
+                       f"errors {before} -> {after})" if k == 0 else f", and again ({before} "
+                       f"-> {after})")
+    n_look = sum(look.n_simulations for look in looks)
     return {"x": final.x, "source": source, "verified": v.verified,
             "is_optimum": c.source == "optimum" and not c.centered and not refined,
             "optimum_outcome": optimum.value, "n_simulations": v.n_simulations + n_look,
@@ -143,7 +151,11 @@ def choose_layout(recorded, result, starts: dict[str, np.ndarray] | None = None,
                          **({"centering": v.n_centering_simulations}
                             if v.n_centering_simulations else {}),
                          **({"second look": n_look} if n_look else {})},
-            "centering": centering, "second_look": _look_summary(look, refined),
+            "centering": centering,
+            "second_look": _look_summary(looks[0], kept[0]) if looks else None,
+            **({"more_looks": [_look_summary(lk, kp) for lk, kp in zip(looks[1:], kept[1:],
+                                                                      strict=True)]}
+               if len(looks) > 1 else {}),
             "race_stages": list(v.race_stages),
             "candidates": [{"source": t.source, "vector": [float(u) for u in t.x],
                             "success_rate": t.success_rate, "valid_copies": t.n_valid,
@@ -151,10 +163,8 @@ def choose_layout(recorded, result, starts: dict[str, np.ndarray] | None = None,
                            for t in v.candidates]}
 
 
-def _look_summary(look, refined: bool) -> dict | None:
-    """result.json's account of the second look (None when it did not run)."""
-    if look is None:
-        return None
+def _look_summary(look, refined: bool) -> dict:
+    """result.json's account of one look."""
     out = {"simulations": look.n_simulations, "kept": refined, "check": None}
     if look.check is not None:
         before, after = look.check

@@ -70,8 +70,9 @@ FORMAT = 1
 
 # LearningSettings fields outside a run's identity (speed only), and fields added later at the
 # value that gives the code before them (every new one: older run directories stay resumable)
-_NOT_IDENTITY, _ADDED_LATER = ("n_jobs",), {"unmodelled_at": "start", "second_look": False,
-                                            "exploration_stall_spacing": 0.0}
+_NOT_IDENTITY = ("n_jobs",)
+_ADDED_LATER = {"unmodelled_at": "start", "second_look": False, "exploration_stall_spacing": 0.0,
+                "second_look_rounds": 1}
 
 
 def run_identity(scenario_name: str, scenario_sha256: str, seed: int, settings,
@@ -259,9 +260,9 @@ class RunStore:
         return path
 
     def read_result(self) -> dict | None:
-        """The summary of a finished run; None when there is none, or when ``result.json``
-        or the ``model.pkl`` it records is damaged or missing (a warning says which): the run
-        is then to be recomputed. The model is checked by its SHA-256, never unpickled."""
+        """A finished run's summary, or None: none, or ``result.json`` or the ``model.pkl`` it
+        records damaged or missing (a warning says which; the run is then recomputed). The
+        model is checked by its SHA-256, never unpickled."""
         path = self.directory / RESULT
         if not path.exists():
             return None
@@ -316,12 +317,8 @@ def _reason(exc: OSError | ValueError) -> str:
     return f"{exc.strerror or exc}{where}"
 
 
-class _Missing:
-    def __repr__(self) -> str:
-        return "nothing"
-
-
-_MISSING = _Missing()
+# a key only one side has; its repr is what the refusal says ("run has nothing")
+_MISSING = type("_Missing", (), {"__repr__": lambda self: "nothing"})()
 
 
 def _differences(a, b, prefix: str = "") -> list[tuple[str, Any, Any]]:
