@@ -85,7 +85,7 @@ def second_look(problem, model_settings, X: np.ndarray, labels, chosen: Candidat
             x = place_unmodelled(model, x, successes, problem.penetration)
         if np.array_equal(x, chosen.x):
             break
-        source = f"refined again from {name}"
+        source = name if name.startswith("refined again") else f"refined again from {name}"
         own = simulate(x[None, :])[0]
         n_sims += 1
         if own.success:
