@@ -28,14 +28,14 @@ def exploration_parents(
     (docs/decisions.md, "Parents spread apart after a stall").
     """
     counts = np.asarray(counts)
+    if spacing > 0 and X is not None:
+        return _spaced(counts, n, newest_first, np.asarray(X, dtype=float), spacing)
     top = np.argsort(-counts, kind="stable")[: min(n, len(counts))]
     if newest_first and len(top):
         cut = counts[top[-1]]
         above = top[counts[top] > cut]
         at_cut = np.flatnonzero(counts == cut)[::-1][: len(top) - len(above)]
         top = np.concatenate([above, at_cut])
-    if spacing > 0 and X is not None and len(top):
-        top = _spaced(counts, n, newest_first, np.asarray(X, dtype=float), spacing)
     return top
 
 
