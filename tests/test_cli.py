@@ -7,8 +7,10 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from _support import run
 
 from rgmcad.cli import main
+from rgmcad.scene.loader import load_scenario
 
 SCENARIOS = sorted(Path("scenarios").glob("*.toml"))
 
@@ -195,3 +197,34 @@ def test_bad_event_exit_status_from_the_command_line(tmp_path):
                           capture_output=True, text=True)
     assert done.returncode == 2 and "events.extra.hold" in done.stderr
     assert len([line for line in done.stderr.splitlines() if "rgmcad" in line]) == 1
+
+
+def test_simulate_json_says_where_every_body_ended(capsys):
+    # A user looking for where a ball went reads it from --json instead of rendering a video.
+    assert main(["simulate", "scenarios/simple.toml", "--layout", "solved", "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    ends = out["final_poses"]
+    assert {"floor", "ball", "track", "run[0]", "run[1]", "run[2]"} <= set(ends)
+    ball, track = ends["ball"], ends["track"]
+    # The track is fixed: it ends where the layout put it, to the micrometre.
+    assert track["x"] == pytest.approx(out["values"]["track.x"], abs=1e-6)
+    assert track["roll"] == pytest.approx(out["values"]["track.roll"], abs=1e-3)
+    # The ball (radius 10 mm) rolled off the track, which the layout holds above the floor,
+    # and lies on the floor, past the track's lower end.
+    assert ball["z"] == pytest.approx(0.01, abs=1e-3)
+    assert ball["x"] > track["x"]
+    # Every domino toppled (the scenario's toppling events), so none stands upright.
+    for name in ("run[0]", "run[1]", "run[2]"):
+        tilt = max(abs(ends[name]["pitch"]), abs(ends[name]["roll"]))
+        assert tilt > 15, (name, ends[name])
+    # Watching the run does not change it: the events are those of a plain simulation.
+    scenario = load_scenario(Path("scenarios/simple.toml"))
+    plain = run(scenario, "solved")
+    assert [[e.name, e.state.value, e.time] for e in plain.events] == [
+        [e["name"], e["state"], e["time"]] for e in out["events"]]
+
+
+def test_simulate_json_of_an_invalid_layout_has_no_poses(capsys):
+    assert main(["simulate", "scenarios/simple.toml", "--vector", "0,0,0.5", "--json"]) == 1
+    out = json.loads(capsys.readouterr().out)
+    assert out["outcome"] == "invalid" and "final_poses" not in out

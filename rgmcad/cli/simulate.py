@@ -48,7 +48,7 @@ def run(args) -> int:
     from rgmcad.scene.design_space import vector_from_values
     from rgmcad.scene.layout_files import resolve_layout
     from rgmcad.sim.render import record_video, video_frames
-    from rgmcad.sim.run import Outcome, simulate
+    from rgmcad.sim.run import Outcome, final_poses, simulate
 
     if args.video:
         output_file(args.video, "--video", VIDEO_SUFFIXES)
@@ -75,13 +75,16 @@ def run(args) -> int:
 
         result = simulate_to_html(scenario, values, parts, args.html,
                                   title=f"{scenario.name}, layout {name}", physics=physics)
+    ends = {}  # body -> its pose when the run stopped, for --json
     if not (args.video or args.html):
-        result = simulate(scenario, values, parts, physics=physics)
+        result = simulate(scenario, values, parts, physics=physics, **final_poses(ends))
     if args.json:
         out = result.to_dict()
         out.update(scenario=scenario.name, layout=name,
                    vector=vector_from_values(scenario, values).tolist(),
                    values={f.name: float(v) for f, v in zip(scenario.free, values, strict=True)})
+        if ends:
+            out["final_poses"] = ends
         if args.video:
             out["video"] = args.video
         if args.html:
@@ -109,3 +112,4 @@ def run(args) -> int:
     if args.html:
         say(f"replay: {args.html}")
     return 0 if result.outcome is Outcome.SUCCESS else 1
+

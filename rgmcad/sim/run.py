@@ -18,6 +18,7 @@ from enum import StrEnum
 
 import numpy as np
 
+from rgmcad.geometry import hpr_of
 from rgmcad.parts.store import BuiltPart
 from rgmcad.scene.bodies import Scene, make_scene
 from rgmcad.scene.model import Scenario
@@ -140,6 +141,20 @@ def simulate(scenario: Scenario, values, parts: Mapping[str, BuiltPart], *,
     return SimulationResult(outcome, events, t, time.perf_counter() - start, steps, validity,
                             built_at - start, ready_at - built_at)
 
+
+
+def final_poses(into: dict) -> dict:
+    """Keyword arguments of :func:`simulate` that leave in ``into`` each body's pose in the
+    world when the run stops: ``{body: {x, y, z (m), heading, pitch, roll (deg)}}``, as a
+    layout file writes a pose (``rgmcad simulate --json``'s ``final_poses``)."""
+    def observe(world, t):  # called before the first step and at the end: the end stays
+        for name in world.handles:
+            m = world.pose(name)
+            h, p, r = hpr_of(m[:3, :3])
+            into[name] = {"x": float(m[0, 3]), "y": float(m[1, 3]), "z": float(m[2, 3]),
+                          "heading": float(h), "pitch": float(p), "roll": float(r)}
+
+    return {"observer": observe, "observe_every": 2**62}
 
 def _placed_by_hand(scenario, values, parts, physics: PhysicsDraw, designed: Scene,
                     tolerance: float, cache) -> Scene:
