@@ -19,6 +19,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from .close_in import close_in_sound
 from .factorize import fit_spd
 from .optimize import maximize_robustness, place_unmodelled, start_points
 from .verify import Candidate, nudged, outcome, race_at_verify_errors
@@ -46,11 +47,15 @@ class SecondLook:
         the refined layout succeeds).
     n_simulations : int
         Simulations this step ran.
+    close_in_failed : bool
+        The refined layout won the check but was not kept: it failed within 1/300 of itself
+        (``close_in_copies``).
     """
 
     chosen: Candidate
     check: tuple[Candidate, Candidate] | None
     n_simulations: int
+    close_in_failed: bool = False
 
 
 def second_look(problem, model_settings, X: np.ndarray, labels, chosen: Candidate, simulate,
@@ -98,8 +103,15 @@ def second_look(problem, model_settings, X: np.ndarray, labels, chosen: Candidat
     if refined is None:
         return SecondLook(chosen, None, n_sims)
     unrated = dict(success_rate=float("nan"), n_valid=0)
-    tested, n_tested, best_index, _ = race_at_verify_errors(
+    tested, n_tested, best_index, *_ = race_at_verify_errors(
         [replace(chosen, **unrated), replace(refined, **unrated)], s, simulate,
         problem.validity, scrambles=_check_scrambles(look))
     before, after = tested
-    return SecondLook(after if best_index == 1 else chosen, (before, after), n_sims + n_tested)
+    n_sims += n_tested
+    knife_edge = False
+    if best_index == 1 and s.close_in_copies:  # kept only if it succeeds where it is placed
+        sound, n_close = close_in_sound(refined.x, getattr(simulate, "unseen", simulate),
+                                        problem.validity, s.close_in_copies)
+        n_sims += n_close
+        best_index, knife_edge = int(sound), not sound
+    return SecondLook(after if best_index == 1 else chosen, (before, after), n_sims, knife_edge)

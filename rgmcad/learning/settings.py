@@ -44,13 +44,10 @@ class LearningSettings:
     exploration_max_iter : int, default 500
         k_e: cap on exploration iterations (paper, code; "never reached" per the paper).
     exploration_lag : int, default 1
-        Batches of exploration that simulate while the next one is drawn: batch k is drawn
-        from the results of the batches before k - lag (0 = the paper's sequential loop,
-        where every batch waits for the one before). Why: the pool no longer sits idle
-        while a batch's last simulation finishes and the next batch is drawn, and one batch
-        of lag makes no measurable difference to what is found. The result depends on the
-        lag, never on timing or the number of workers. See docs/decisions.md, "Exploration
-        overlap".
+        Batches of exploration that simulate while the next one is drawn (batch k is drawn
+        from the batches before k - lag; 0 = the paper's sequential loop): the pool never
+        waits for a batch's last simulation, at no measurable cost in what is found; the
+        result depends on the lag, never on timing or workers ("Exploration overlap").
     exploration_variance : float, default 0.01
         sigma of Eq. 1: each mixture component has covariance ``sigma * I``. It is a
         **variance** (standard deviation 0.1), as in the authors' code; the paper's notation
@@ -64,9 +61,8 @@ class LearningSettings:
         already worked): docs/decisions.md, "Exploration step".
     exploration_stall_batches : int, default 5
         Added by rgmcad: after this many mixture batches in a row that left the N+ parents
-        unchanged, the exploration breaks ties at their lowest count by recency instead of
-        age (:func:`~.sampling.exploration_parents`); 0: never (the paper's order). Why:
-        docs/decisions.md, "Exploration stalls".
+        unchanged, ties at their lowest count go to the newest, not the oldest
+        (:func:`~.sampling.exploration_parents`); 0: never (the paper). "Exploration stalls".
     exploration_stall_spacing : float, default 0.0
         Added by rgmcad, off by default: once stalled, a sample closer than this many step
         lengths (the mixtures' standard deviation times sqrt(d)) to a parent already chosen
@@ -283,6 +279,9 @@ class LearningSettings:
     second_look_rounds : int, default 1
         Looks at most: another runs, on every simulation so far, only after a look whose
         refined layout was kept. Added by rgmcad (docs/decisions.md, "Looking again").
+    close_in_copies : int, default 0
+        K > 0: the layout returned must succeed at K valid layouts within 1/300 of it (else
+        the next candidate that does; a refined one is not kept). "Knife edges" in decisions.
     tolerance_ratio : float, default 0.9
         Placement tolerance: how far each coordinate may move before the predicted success
         probability drops below ``tolerance_ratio`` times its value at the optimum.
@@ -353,6 +352,7 @@ class LearningSettings:
     centering_check_samples: int = 128
     second_look: bool = True
     second_look_rounds: int = 1
+    close_in_copies: int = 0
     # Placement tolerance
     tolerance_ratio: float = 0.9
     tolerance_step: float = 0.005
@@ -370,7 +370,7 @@ class LearningSettings:
                                  f"{value!r}")
         for name in ("exploration_max_iter", "exploration_lag", "exploration_stall_batches",
                      "active_max_iter", "tolerance_bisections", "mi_null_permutations",
-                     "verify_samples", "centering_simulations"):
+                     "verify_samples", "centering_simulations", "close_in_copies"):
             value = getattr(self, name)
             if int(value) != value or value < 0:
                 raise ValueError(f"LearningSettings.{name} must be a non-negative integer, "

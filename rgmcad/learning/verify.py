@@ -10,25 +10,24 @@ itself, and is then simulated at up to ``verify_samples`` errors of a fixed desi
 standard deviation ``verify_noise``, copies outside the design space clipped onto it; or,
 with ``error_radius`` > 0, the errors of global robustness, kept in the design space with
 their importance weights. Invalid copies are left out. The candidates race: all meet the
-first 32 errors, then twice as many, and so on up to ``verify_samples`` (and on, up to four
-times as many, while a candidate still racing has fewer than half as many valid copies:
-errors that make most copies invalid tell little); after each stage
-a candidate whose success rate is significantly below the leader's (a paired test on the
-common errors) is dropped, so clear losers cost little and close ones get the errors it
-takes to order them. Of the candidates never dropped, the one with the highest success
-rate among its valid copies (per radius, then averaged over radii, for ball errors) wins;
-ties go to the earlier candidate, so the optimum first.
+first 32 errors, then twice as many, up to ``verify_samples`` (and on, up to four times as
+many, while a candidate still racing has fewer than half as many valid copies); after each
+stage a candidate significantly below the leader (a paired test on the common errors) is
+dropped, so clear losers cost little and close ones get the errors it takes to order them.
+Of those never dropped, the highest success rate among its valid copies (per radius, then
+averaged over radii, for ball errors) wins; ties go to the earlier candidate (the optimum).
 
-An optimum that fails its own simulation is first moved, by at most 1/300 of the
-normalised space, to the nearest of a few layouts drawn there that succeeds (``nudged``),
-which is then the first candidate; only when none does is the optimum left out.
+An optimum that fails its own simulation is first moved, by at most 1/300, to the nearest
+of a few layouts drawn there that succeeds (``nudged``); only if none does is it left out.
 
-Start layouts (the user's own, ``starts``) that succeeded in their own simulation are always
-candidates, right after the optimum: the layout returned is then at least as good as the
-user's by this measure. A start that fails its own simulation is moved by a hair as the
-optimum is, and is a candidate if a layout that near it succeeds. With
-``verify_samples = 0`` the choice is the paper's: the optimum if it succeeds, else the best
-predicted simulated success.
+Start layouts (the user's own, ``starts``) that succeed (or a hair from them, as for the
+optimum) are always candidates, after the optimum: the layout returned is then at least as
+good as the user's by this measure. With ``verify_samples = 0`` the choice is the paper's:
+the optimum if it succeeds, else the best predicted simulated success.
+
+With ``close_in_copies`` = K > 0 the winner must also succeed at K layouts within 1/300 of
+itself; if it does not, the next best-rated candidate never dropped that does is taken
+(none: the winner stays): rho_g weighs that radius 1/30, so a race can prefer a knife edge.
 
 When ``settings.centering`` asks for it (by default: when the exploration found fewer
 than ``n_successes`` successes), the layout chosen is then centred by simulation
@@ -45,6 +44,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from .centering import Centering, center_layout
+from .close_in import first_sound
 from .errors import design_from_settings, expected_success
 from .factorize import SPDModel
 from .oracles import Label
@@ -118,6 +118,8 @@ class Verification:
     race_stages : tuple of int
         The errors met by the end of each stage of the race (:func:`race_stages`; empty
         when fewer than two candidates raced).
+    close_in_failed : tuple of str
+        The candidates passed over by ``close_in_copies``'s screen, best rated first.
     """
 
     chosen: Candidate
@@ -129,6 +131,7 @@ class Verification:
     centering_check: tuple[Candidate, Candidate] | None = None
     n_centering_simulations: int = 0
     race_stages: tuple[int, ...] = ()
+    close_in_failed: tuple[str, ...] = ()
 
 
 def verify_layout(
@@ -210,12 +213,20 @@ def verify_layout(
 
     chosen, tested, stages = candidates[0], [], ()
     if len(candidates) > 1:
-        tested, n_tested, best, stages = race_at_verify_errors(candidates, settings, simulate,
-                                                               validity)
+        tested, n_tested, best, stages, alive = race_at_verify_errors(candidates, settings,
+                                                                      simulate, validity)
         n_sims += n_tested
         chosen = tested[best]
+    passed_over = ()
+    if settings.close_in_copies:  # the best rated never dropped that succeeds where it stands
+        chosen, passed_over, n_close = first_sound(
+            sorted([tested[i] for i in alive] if tested else [chosen],
+                   key=lambda c: (c is not chosen, -c.success_rate)),
+            getattr(simulate, "unseen", simulate), validity, settings.close_in_copies)
+        n_sims += n_close
     if not _centring_wanted(settings, exploration_successes):
-        return Verification(chosen, True, optimum, tuple(tested), n_sims, race_stages=stages)
+        return Verification(chosen, True, optimum, tuple(tested), n_sims, race_stages=stages,
+                            close_in_failed=passed_over)
     if rng is None:
         raise ValueError("verify_layout: centring needs rng")
     centring = center_layout(chosen.x, simulate, validity, rng,
@@ -228,7 +239,7 @@ def verify_layout(
     if not moved or not simulate(centring.x[None, :])[0].success:
         return Verification(chosen, True, optimum, tuple(tested), n_sims, centring,
                             n_centering_simulations=n_sims - before_centring,
-                            race_stages=stages)
+                            race_stages=stages, close_in_failed=passed_over)
     # the centre against the layout it came from, at centering_check_samples errors common
     # to both, all of them (no race between two): on domino_arc 32 errors ranked a centre
     # 0.16 more robust below its start (docs/decisions.md, "Design centring")
@@ -241,7 +252,7 @@ def verify_layout(
     n_sims += before.n_valid + centre.n_valid
     winner = centre if centre.success_rate > before.success_rate else chosen
     return Verification(winner, True, optimum, tuple(tested), n_sims, centring, (before, centre),
-                        n_sims - before_centring, stages)
+                        n_sims - before_centring, stages, passed_over)
 
 
 # An optimum can fail where it stands and succeed all around it (a symmetric tie-break, a
@@ -294,11 +305,9 @@ def nudged(x: np.ndarray, simulate, validity,
 # by default".
 _FIRST_ERRORS, _DROP_Z, _DROP_MIN_VALID = 32, 2.5, 16
 # Past ``verify_samples`` errors the race goes on, doubling up to _MOST_ERRORS times as many
-# (errors of an independent design of the same kind, so the first ``verify_samples`` are
-# those of a race that stops there), while a candidate still racing has fewer valid copies
-# than half ``verify_samples``: at d = 18 most errors give invalid layouts, and ~100 valid
-# copies could not order candidates 0.1 apart (docs/decisions.md, "Errors until enough
-# are valid").
+# (from an independent design), while a candidate still racing has fewer valid copies than
+# half ``verify_samples``: at d = 18 most errors give invalid layouts, and ~100 valid copies
+# cannot order candidates 0.1 apart (docs/decisions.md, "Errors until enough are valid").
 _MOST_ERRORS, _MORE_ERRORS_SEED = 4, 1
 
 
@@ -315,7 +324,7 @@ def race_stages(n_errors: int, n_most: int | None = None) -> list[int]:
 
 def race_at_verify_errors(candidates, settings: LearningSettings, simulate, validity,
                           scrambles: tuple[int | None, int] = (None, _MORE_ERRORS_SEED)
-                          ) -> tuple[list[Candidate], int, int, tuple[int, ...]]:
+                          ) -> tuple[list[Candidate], int, int, tuple[int, ...], tuple[int, ...]]:
     """:func:`raced` at ``settings.verify_samples`` errors and, while copies are mostly
     invalid, up to _MOST_ERRORS times as many from an independent design; ``scrambles`` are
     the two designs' (the final choice's by default; another pair gives errors it never
@@ -331,12 +340,12 @@ def race_at_verify_errors(candidates, settings: LearningSettings, simulate, vali
 
 
 def raced(candidates, design, simulate, validity, race: bool = True, more=None
-          ) -> tuple[list[Candidate], int, int, tuple[int, ...]]:
+          ) -> tuple[list[Candidate], int, int, tuple[int, ...], tuple[int, ...]]:
     """Each candidate with its success rate under the design's errors (common to all), raced
     as described above (``race=False``: all of them at every error, in one batch; ``more``:
     the errors appended while copies are mostly invalid); also the simulations that took,
     the index of the candidate chosen (the highest rate among those never dropped, ties to
-    the earlier one) and the stages run (empty without a race)."""
+    the earlier one), the stages run (empty without a race) and those never dropped."""
     design = design.interleaved()
     n_base = len(design.offsets)
     if more is not None:
@@ -372,7 +381,7 @@ def raced(candidates, design, simulate, validity, race: bool = True, more=None
     tested = [replace(c, success_rate=float(rates[i]), n_valid=int(valid[i].sum()))
               for i, c in enumerate(candidates)]
     run = tuple(s for s in stages if s <= done) if race else ()
-    return tested, n_sims, max(alive, key=lambda c: (rates[c], -c)), run
+    return tested, n_sims, max(alive, key=lambda c: (rates[c], -c)), run, tuple(alive)
 
 
 def _significantly_below(deficit: float, lead: np.ndarray, other: np.ndarray, n: int) -> bool:

@@ -118,7 +118,8 @@ def report_markdown(scenario, s: dict, low, high) -> str:
                             "so the nearest of the few layouts drawn within 1/300 of it that "
                             "succeeded took its place." for c in s["verification"]
                             if c.get("moved_from"))
-                  + _second_look_words(s.get("second_look"))
+                  + _close_in_words(s.get("close_in"))
+                  + _second_look_words(s.get("second_look"), s.get("close_in"))
                   + "".join(_look_again_words(look) for look in s.get("more_looks", [])), "",
                   "| candidate | success under errors | valid copies |",
                   "|---|---|---|"]
@@ -129,12 +130,14 @@ def report_markdown(scenario, s: dict, low, high) -> str:
     return "\n".join(lines)
 
 
-def _second_look_words(look) -> str:
+def _second_look_words(look, close_in: dict | None = None) -> str:
     if not look or not look["check"]:
         return ""
     c = look["check"]
     verdict = ("so the refined layout was kept" if look["kept"] else
-               "so the layout chosen above was kept")
+               "but the refined layout failed at a layout within 1/300 of itself, so the "
+               "layout chosen above was kept" if close_in and 0 in close_in["refined_not_kept"]
+               else "so the layout chosen above was kept")
     before, refined = two_rates(c["before"], c["refined"])
     return (" Then the model was fitted again on every simulation of the run, these "
             "candidates' included, and the refinement run again: both the layout chosen and "
@@ -318,3 +321,12 @@ def plot_progress(result, path: Path) -> None:
     fig.tight_layout()
     fig.savefig(path)
     plt.close(fig)
+
+
+def _close_in_words(close_in: dict | None) -> str:
+    """report.md's account of the knife-edge screen (``close_in_copies``), when it acted."""
+    if not close_in or not close_in["passed_over"]:
+        return ""
+    return (f" The winner then had to succeed at {close_in['copies']} layouts within 1/300 of "
+            f"itself: {' and '.join(close_in['passed_over'])} did not, so the best-rated "
+            "candidate never dropped that did was kept.")

@@ -95,6 +95,9 @@ def choose_layout(recorded, result, starts: dict[str, np.ndarray] | None = None,
         seen.extend(labels)
         return labels
 
+    # the close-in screen's copies (within 1/300 of a layout, finer than any model resolves)
+    # stay out of the second look's fit: a run whose layouts pass is the run it was without
+    simulate.unseen = recorded.simulate
     v = verify_layout(result.model, result.x, result.X, result.labels, simulate,
                       recorded.validity, result.settings, starts=starts,
                       rng=np.random.default_rng([seed, _CENTERING_STREAM]),
@@ -133,6 +136,9 @@ def choose_layout(recorded, result, starts: dict[str, np.ndarray] | None = None,
                          "before": pair[0].success_rate, "centre": pair[1].success_rate,
                          "valid_copies": [pair[0].n_valid, pair[1].n_valid],
                          "vector": [float(u) for u in pair[1].x]}}
+    if v.close_in_failed:
+        source += (f", chosen over {' and '.join(v.close_in_failed)}, which failed at a layout "
+                   "within 1/300 of itself")
     if c.centered:
         before, after = two_rates(v.centering_check[0].success_rate, c.success_rate)
         source += f", centred by simulation (success under errors {before} -> {after})"
@@ -143,6 +149,9 @@ def choose_layout(recorded, result, starts: dict[str, np.ndarray] | None = None,
             source += (f", then refined again on the run's simulations (success under new "
                        f"errors {before} -> {after})" if k == 0 else f", and again ({before} "
                        f"-> {after})")
+        elif look.close_in_failed:
+            source += (", then refined again but not kept: the refined layout failed at a layout "
+                       "within 1/300 of itself")
     n_look = sum(look.n_simulations for look in looks)
     return {"x": final.x, "source": source, "verified": v.verified,
             "is_optimum": c.source == "optimum" and not c.centered and not refined,
@@ -156,6 +165,10 @@ def choose_layout(recorded, result, starts: dict[str, np.ndarray] | None = None,
             **({"more_looks": [_look_summary(lk, kp) for lk, kp in zip(looks[1:], kept[1:],
                                                                       strict=True)]}
                if len(looks) > 1 else {}),
+            **({"close_in": {"copies": s.close_in_copies, "passed_over": list(v.close_in_failed),
+                             "refined_not_kept": [k for k, lk in enumerate(looks)
+                                                  if lk.close_in_failed]}}
+               if s.close_in_copies else {}),
             "race_stages": list(v.race_stages),
             "candidates": [{"source": t.source, "vector": [float(u) for u in t.x],
                             "success_rate": t.success_rate, "valid_copies": t.n_valid,

@@ -336,7 +336,7 @@ def _write_outputs(scenario, store, recorded, result, chosen, wall_time, seed, b
         "exploration": result.exploration_summary(),
         "verification": chosen["candidates"],
         "centering": chosen["centering"], "second_look": chosen["second_look"],
-        **{k: chosen[k] for k in ("more_looks",) if k in chosen},
+        **{k: chosen[k] for k in ("more_looks", "close_in") if k in chosen},
         "verify_noise": result.settings.verify_noise, "error_radius": result.settings.error_radius,
         "race_stages": chosen["race_stages"], "verify_samples": result.settings.verify_samples,
         "robustness": robustness,
