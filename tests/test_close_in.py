@@ -2,17 +2,12 @@
 out must succeed where a builder puts it almost exactly, not only on average over the large
 errors rho_g weighs."""
 
-import importlib
-
 import numpy as np
 import pytest
 
 from rgmcad.learning import Candidate, LearningSettings, SPDModel, SuccessClassifier, verify_layout
-from rgmcad.learning.close_in import close_in_sound
+from rgmcad.learning.close_in import close_in_sound, first_sound
 from rgmcad.learning.oracles import BallRegion, Label, OracleEvent, ProductOracle
-
-# the module, not the function of the same name that rgmcad.learning exports
-look_module = importlib.import_module("rgmcad.learning.second_look")
 
 FAST = LearningSettings(svm_C_grid=(1.0, 10.0, 100.0), svm_gamma_grid=(1.0, 10.0),
                         svm_class_weights=(None,), centering_simulations=0, verify_samples=64,
@@ -65,60 +60,28 @@ def _model(oracle, seed=0):
     return SPDModel(("hit",), {"hit": clf}, True, 1.0, False, 2)
 
 
-def test_a_race_winner_on_a_knife_edge_gives_way_to_the_next_sound_candidate():
+def test_a_knife_edge_gives_way_to_the_best_rated_runner_up_that_is_sound():
     # the optimum is the disc's centre, the most robust place under the race's errors, and
     # on a knife edge; two simulated successes a little off the centre are sound
     oracle = _Ringed()
     X = np.array([[0.64, 0.5], [0.4, 0.6]])
     labels = oracle.simulate(X)
-    settings = FAST.replace(verify_samples=256)
-    plain = verify_layout(_model(oracle), KNIFE, X, labels, oracle.simulate, oracle.validity,
-                          settings)
-    assert plain.chosen.source == "optimum"  # the race alone keeps the knife edge
-    oracle.asked.clear()
-    screened = verify_layout(_model(oracle), KNIFE, X, labels, oracle.simulate,
-                             oracle.validity, settings.replace(close_in_copies=16))
-    # the same race, then the screen: the next best-rated candidate, which is sound
-    assert [c.success_rate for c in screened.candidates] == [
-        c.success_rate for c in plain.candidates]
-    assert screened.chosen.source.startswith("simulated sample #")
-    others = [c for c in plain.candidates if c.source != "optimum"]
-    assert screened.chosen.success_rate == max(c.success_rate for c in others)
-    assert close_in_sound(screened.chosen.x, oracle.simulate, oracle.validity, 16)[0]
-    assert screened.close_in_failed == ("optimum",) and plain.close_in_failed == ()
-    assert screened.n_simulations == plain.n_simulations + 32  # two candidates screened
+    v = verify_layout(_model(oracle), KNIFE, X, labels, oracle.simulate, oracle.validity,
+                      FAST.replace(verify_samples=256))
+    assert v.chosen.source == "optimum"  # the race alone keeps the knife edge
+    assert v.runners_up[0] is v.chosen
+    rates = [c.success_rate for c in v.runners_up[1:]]
+    assert rates == sorted(rates, reverse=True)
+    chosen, passed_over, n = first_sound(v.runners_up, oracle.simulate, oracle.validity, 16)
+    assert passed_over == ("optimum",) and chosen is v.runners_up[1]
+    assert close_in_sound(chosen.x, oracle.simulate, oracle.validity, 16)[0]
+    assert n == 32  # two layouts screened
 
 
-def test_when_no_candidate_is_sound_the_race_winner_stays():
+def test_when_none_is_sound_the_first_stays_and_nothing_is_passed_over():
     oracle = _Ringed()
-    X = np.array([[0.95, 0.95]])  # the run's one other sample failed: no other candidate
-    v = verify_layout(_model(oracle), KNIFE, X, oracle.simulate(X), oracle.simulate,
-                      oracle.validity, FAST.replace(close_in_copies=16))
-    assert v.chosen.source == "optimum" and v.verified and v.close_in_failed == ()
-
-
-def test_a_refined_layout_on_a_knife_edge_is_not_kept(monkeypatch):
-    # the second look's refined layout wins its check; on a knife edge it is not kept
-    oracle = ProductOracle(2, {"hit": OracleEvent((), (0, 1), BallRegion((0.5, 0.5), 0.3))})
-    rng = np.random.default_rng(0)
-    X = np.column_stack([rng.uniform(0.7, 1.0, 200), rng.uniform(0.0, 1.0, 200)])
-    edge = Candidate(np.array([0.76, 0.5]), "simulated sample #3", "success")
-    P = edge.x + rng.normal(0, 0.1, (256, 2))
-    P = P[np.all((P >= 0) & (P <= 1), axis=1)]
-    seen_X, seen = np.vstack([X, P]), [*oracle.simulate(X), *oracle.simulate(P)]
-    settings = FAST.replace(verify_samples=256, close_in_copies=8)
-    kept = look_module.second_look(oracle, settings.replace(close_in_copies=0), seen_X, seen,
-                                   edge, oracle.simulate, np.random.default_rng(0))
-    assert kept.chosen is not edge  # without the screen the refined layout is kept
-    screened = []
-    monkeypatch.setattr(look_module, "close_in_sound",
-                        lambda x, *a: screened.append(x) or (False, 8))
-    look = look_module.second_look(oracle, settings, seen_X, seen, edge, oracle.simulate,
-                                   np.random.default_rng(0))
-    np.testing.assert_array_equal(screened[0], kept.chosen.x)
-    assert look.chosen is edge and look.check is not None
-    assert look.check[1].success_rate > look.check[0].success_rate
-    assert look.n_simulations == kept.n_simulations + 8
+    knife = Candidate(KNIFE, "optimum", "success")
+    assert first_sound([knife], oracle.simulate, oracle.validity, 16) == (knife, (), 16)
 
 
 @pytest.mark.parametrize("bad", [-1, 1.5])
@@ -127,34 +90,50 @@ def test_the_setting_is_a_count(bad):
         LearningSettings(close_in_copies=bad)
 
 
-def test_optimize_with_the_screen_says_what_it_did_and_otherwise_is_the_same_run(tmp_path):
+def test_optimize_with_the_screen_says_what_it_did_and_otherwise_is_the_same_run(
+        tmp_path, monkeypatch):
     # the user's view: `optimize` on simple with and without the screen; result.json, the
-    # summary's words and report.md agree; a run whose layouts all pass is the run without it
+    # summary's words, report.md and layout.json agree; a sound layout is the same run's
     import json
 
+    import rgmcad.learning.close_in as close_in_module
     from rgmcad.learning.settings import budget
-    from rgmcad.runs.problem import ScenarioProblem
     from rgmcad.runs.workflow import optimize_scenario
     from rgmcad.shipped import scenario_path
 
-    plain = optimize_scenario(scenario_path("simple"), seed=0, settings=budget("small"),
-                              run_dir=tmp_path / "plain", workers=1).summary
-    run = optimize_scenario(scenario_path("simple"), seed=0,
-                            settings=budget("small").replace(close_in_copies=16),
-                            run_dir=tmp_path / "screened", workers=1).summary
+    def run(name, **kw):
+        summary = optimize_scenario(scenario_path("simple"), seed=0,
+                                    settings=budget("small").replace(**kw),
+                                    run_dir=tmp_path / name, workers=1).summary
+        layout = json.loads((tmp_path / name / "layout.json").read_text())["vector"]
+        assert layout == summary["vector"]
+        return summary, (tmp_path / name / "report.md").read_text()
+
+    plain, _ = run("plain")
+    screened, report = run("screened", close_in_copies=16)
     assert "close_in" not in plain
-    close_in = run["close_in"]
-    assert close_in["copies"] == 16
-    report = (tmp_path / "screened" / "report.md").read_text()
-    assert ("chosen over" in run["source"]) == bool(close_in["passed_over"])
-    assert ("did not, so the best-rated" in report) == bool(close_in["passed_over"])
-    assert ("failed at a layout within 1/300 of itself, so the layout chosen above was kept"
-            in report) == (0 in close_in["refined_not_kept"])
+    close_in = screened["close_in"]
+    assert close_in["passed_over"] == [] and close_in["simulations"] == 16  # measured: sound
+    assert screened["vector"] == plain["vector"] and screened["source"] == plain["source"]
+    assert screened["simulations_by_stage"]["close-in screen"] == 16
+    assert screened["evaluations"] == plain["evaluations"] + 16
+    assert "within 1/300 of itself (a knife-edge screen): it did." in report
+    # the same run, its returned layout on a knife edge: the layout it came from instead
+    real = close_in_module.close_in_sound
+    knife = np.asarray(plain["vector"])
+    monkeypatch.setattr(close_in_module, "close_in_sound", lambda x, *a: (
+        (False, 16) if np.array_equal(x, knife) else real(x, *a)))
+    moved, report = run("knife", close_in_copies=16)
+    assert moved["vector"] != plain["vector"]
+    assert moved["close_in"]["passed_over"] == [plain["second_look"]["check"]["source"]]
+    assert moved["source"].startswith(moved["close_in"]["kept"] + ", kept by the knife-edge")
+    assert f"did not, so {moved['close_in']['kept']} was handed out instead." in report
+    assert real(np.asarray(moved["vector"]), *_simple_problem())[0]
+
+
+def _simple_problem():
+    from rgmcad.runs.problem import ScenarioProblem
+    from rgmcad.shipped import scenario_path
+
     problem = ScenarioProblem(scenario_path("simple"))
-    sound, _ = close_in_sound(np.asarray(run["vector"]), problem.simulate, problem.validity, 16)
-    if close_in["passed_over"] or close_in["refined_not_kept"]:
-        assert sound or not close_in["passed_over"]
-    else:  # nothing failed the screen: the same layout as without it, bit for bit
-        assert run["vector"] == plain["vector"] and sound
-        assert run["evaluations"] > plain["evaluations"]  # the screen's copies, journaled
-    assert json.loads((tmp_path / "screened" / "layout.json").read_text())["vector"] == run["vector"]
+    return problem.simulate, problem.validity, 16

@@ -3,9 +3,10 @@
 rho_g weighs its smallest radius (1/300 of every range) 1/30, so a final choice made at the
 errors of global robustness can prefer a layout that works on average over large errors and
 fails at a fair share of the layouts a hair from it (a ball that grazes an edge, a chain on a
-tie). With ``LearningSettings.close_in_copies`` = K > 0 the final choice and the second look
-keep only layouts that succeed at K valid layouts within 1/300 of themselves, when one of the
-layouts they could keep does (docs/decisions.md, "Knife edges in the final choice").
+tie). With ``LearningSettings.close_in_copies`` = K > 0 the layout a run hands out must
+succeed at K valid layouts within 1/300 of itself; if it does not, the layout it came from
+(before the second look), then the final choice's runners-up, best rated first, whichever
+does first (none: it stays). docs/decisions.md, "Knife edges in the final choice".
 """
 
 from __future__ import annotations

@@ -19,7 +19,6 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from .close_in import close_in_sound
 from .factorize import fit_spd
 from .optimize import maximize_robustness, place_unmodelled, start_points
 from .verify import Candidate, nudged, outcome, race_at_verify_errors
@@ -47,15 +46,11 @@ class SecondLook:
         the refined layout succeeds).
     n_simulations : int
         Simulations this step ran.
-    close_in_failed : bool
-        The refined layout won the check but was not kept: it failed within 1/300 of itself
-        (``close_in_copies``).
     """
 
     chosen: Candidate
     check: tuple[Candidate, Candidate] | None
     n_simulations: int
-    close_in_failed: bool = False
 
 
 def second_look(problem, model_settings, X: np.ndarray, labels, chosen: Candidate, simulate,
@@ -107,11 +102,4 @@ def second_look(problem, model_settings, X: np.ndarray, labels, chosen: Candidat
         [replace(chosen, **unrated), replace(refined, **unrated)], s, simulate,
         problem.validity, scrambles=_check_scrambles(look))
     before, after = tested
-    n_sims += n_tested
-    knife_edge = False
-    if best_index == 1 and s.close_in_copies:  # kept only if it succeeds where it is placed
-        sound, n_close = close_in_sound(refined.x, getattr(simulate, "unseen", simulate),
-                                        problem.validity, s.close_in_copies)
-        n_sims += n_close
-        best_index, knife_edge = int(sound), not sound
-    return SecondLook(after if best_index == 1 else chosen, (before, after), n_sims, knife_edge)
+    return SecondLook(after if best_index == 1 else chosen, (before, after), n_sims + n_tested)

@@ -280,8 +280,8 @@ class LearningSettings:
         Looks at most: another runs, on every simulation so far, only after a look whose
         refined layout was kept. Added by rgmcad (docs/decisions.md, "Looking again").
     close_in_copies : int, default 0
-        K > 0: the layout returned must succeed at K valid layouts within 1/300 of it (else
-        the next candidate that does; a refined one is not kept). "Knife edges" in decisions.
+        K > 0: the layout handed out must succeed at K valid layouts within 1/300 of it, else
+        the one before it that does (:mod:`~.close_in`). Off: "Knife edges" in decisions.
     tolerance_ratio : float, default 0.9
         Placement tolerance: how far each coordinate may move before the predicted success
         probability drops below ``tolerance_ratio`` times its value at the optimum.

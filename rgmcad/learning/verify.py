@@ -25,9 +25,8 @@ optimum) are always candidates, after the optimum: the layout returned is then a
 good as the user's by this measure. With ``verify_samples = 0`` the choice is the paper's:
 the optimum if it succeeds, else the best predicted simulated success.
 
-With ``close_in_copies`` = K > 0 the winner must also succeed at K layouts within 1/300 of
-itself; if it does not, the next best-rated candidate never dropped that does is taken
-(none: the winner stays): rho_g weighs that radius 1/30, so a race can prefer a knife edge.
+The candidates never dropped are kept, best rated first, for the knife-edge screen of the
+layout handed out (``close_in_copies``; :mod:`rgmcad.learning.close_in`).
 
 When ``settings.centering`` asks for it (by default: when the exploration found fewer
 than ``n_successes`` successes), the layout chosen is then centred by simulation
@@ -44,7 +43,6 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from .centering import Centering, center_layout
-from .close_in import first_sound
 from .errors import design_from_settings, expected_success
 from .factorize import SPDModel
 from .oracles import Label
@@ -118,8 +116,8 @@ class Verification:
     race_stages : tuple of int
         The errors met by the end of each stage of the race (:func:`race_stages`; empty
         when fewer than two candidates raced).
-    close_in_failed : tuple of str
-        The candidates passed over by ``close_in_copies``'s screen, best rated first.
+    runners_up : tuple of Candidate
+        The candidates never dropped from the race, the winner first, then best rated first.
     """
 
     chosen: Candidate
@@ -131,7 +129,7 @@ class Verification:
     centering_check: tuple[Candidate, Candidate] | None = None
     n_centering_simulations: int = 0
     race_stages: tuple[int, ...] = ()
-    close_in_failed: tuple[str, ...] = ()
+    runners_up: tuple[Candidate, ...] = ()
 
 
 def verify_layout(
@@ -217,16 +215,12 @@ def verify_layout(
                                                                       simulate, validity)
         n_sims += n_tested
         chosen = tested[best]
-    passed_over = ()
-    if settings.close_in_copies:  # the best rated never dropped that succeeds where it stands
-        chosen, passed_over, n_close = first_sound(
-            sorted([tested[i] for i in alive] if tested else [chosen],
-                   key=lambda c: (c is not chosen, -c.success_rate)),
-            getattr(simulate, "unseen", simulate), validity, settings.close_in_copies)
-        n_sims += n_close
+    # those never dropped, the winner first: where a knife-edge screen turns (close_in_copies)
+    runners_up = tuple(sorted([tested[i] for i in alive] if tested else [chosen],
+                              key=lambda c: (c is not chosen, -c.success_rate)))
     if not _centring_wanted(settings, exploration_successes):
         return Verification(chosen, True, optimum, tuple(tested), n_sims, race_stages=stages,
-                            close_in_failed=passed_over)
+                            runners_up=runners_up)
     if rng is None:
         raise ValueError("verify_layout: centring needs rng")
     centring = center_layout(chosen.x, simulate, validity, rng,
@@ -239,7 +233,7 @@ def verify_layout(
     if not moved or not simulate(centring.x[None, :])[0].success:
         return Verification(chosen, True, optimum, tuple(tested), n_sims, centring,
                             n_centering_simulations=n_sims - before_centring,
-                            race_stages=stages, close_in_failed=passed_over)
+                            race_stages=stages, runners_up=runners_up)
     # the centre against the layout it came from, at centering_check_samples errors common
     # to both, all of them (no race between two): on domino_arc 32 errors ranked a centre
     # 0.16 more robust below its start (docs/decisions.md, "Design centring")
@@ -252,7 +246,7 @@ def verify_layout(
     n_sims += before.n_valid + centre.n_valid
     winner = centre if centre.success_rate > before.success_rate else chosen
     return Verification(winner, True, optimum, tuple(tested), n_sims, centring, (before, centre),
-                        n_sims - before_centring, stages, passed_over)
+                        n_sims - before_centring, stages, runners_up)
 
 
 # An optimum can fail where it stands and succeed all around it (a symmetric tie-break, a

@@ -118,9 +118,9 @@ def report_markdown(scenario, s: dict, low, high) -> str:
                             "so the nearest of the few layouts drawn within 1/300 of it that "
                             "succeeded took its place." for c in s["verification"]
                             if c.get("moved_from"))
-                  + _close_in_words(s.get("close_in"))
-                  + _second_look_words(s.get("second_look"), s.get("close_in"))
-                  + "".join(_look_again_words(look) for look in s.get("more_looks", [])), "",
+                  + _second_look_words(s.get("second_look"))
+                  + "".join(_look_again_words(look) for look in s.get("more_looks", []))
+                  + _close_in_words(s.get("close_in")), "",
                   "| candidate | success under errors | valid copies |",
                   "|---|---|---|"]
         for c in s["verification"]:
@@ -130,14 +130,12 @@ def report_markdown(scenario, s: dict, low, high) -> str:
     return "\n".join(lines)
 
 
-def _second_look_words(look, close_in: dict | None = None) -> str:
+def _second_look_words(look) -> str:
     if not look or not look["check"]:
         return ""
     c = look["check"]
     verdict = ("so the refined layout was kept" if look["kept"] else
-               "but the refined layout failed at a layout within 1/300 of itself, so the "
-               "layout chosen above was kept" if close_in and 0 in close_in["refined_not_kept"]
-               else "so the layout chosen above was kept")
+               "so the layout chosen above was kept")
     before, refined = two_rates(c["before"], c["refined"])
     return (" Then the model was fitted again on every simulation of the run, these "
             "candidates' included, and the refinement run again: both the layout chosen and "
@@ -325,8 +323,11 @@ def plot_progress(result, path: Path) -> None:
 
 def _close_in_words(close_in: dict | None) -> str:
     """report.md's account of the knife-edge screen (``close_in_copies``), when it acted."""
-    if not close_in or not close_in["passed_over"]:
+    if not close_in:
         return ""
-    return (f" The winner then had to succeed at {close_in['copies']} layouts within 1/300 of "
-            f"itself: {' and '.join(close_in['passed_over'])} did not, so the best-rated "
-            "candidate never dropped that did was kept.")
+    words = (f" Last, the layout to hand out had to succeed at {close_in['copies']} layouts "
+             "within 1/300 of itself (a knife-edge screen): ")
+    if not close_in["passed_over"]:
+        return words + "it did."
+    return words + (f"{' and '.join(close_in['passed_over'])} did not, so "
+                    f"{close_in['kept']} was handed out instead.")

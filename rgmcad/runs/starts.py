@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from rgmcad.errors import RgmcadError, UsageError
+from rgmcad.learning.close_in import first_sound
 from rgmcad.runs.robustness import two_rates
 from rgmcad.sim.run import Outcome
 
@@ -95,9 +96,6 @@ def choose_layout(recorded, result, starts: dict[str, np.ndarray] | None = None,
         seen.extend(labels)
         return labels
 
-    # the close-in screen's copies (within 1/300 of a layout, finer than any model resolves)
-    # stay out of the second look's fit: a run whose layouts pass is the run it was without
-    simulate.unseen = recorded.simulate
     v = verify_layout(result.model, result.x, result.X, result.labels, simulate,
                       recorded.validity, result.settings, starts=starts,
                       rng=np.random.default_rng([seed, _CENTERING_STREAM]),
@@ -136,39 +134,43 @@ def choose_layout(recorded, result, starts: dict[str, np.ndarray] | None = None,
                          "before": pair[0].success_rate, "centre": pair[1].success_rate,
                          "valid_copies": [pair[0].n_valid, pair[1].n_valid],
                          "vector": [float(u) for u in pair[1].x]}}
-    if v.close_in_failed:
-        source += (f", chosen over {' and '.join(v.close_in_failed)}, which failed at a layout "
-                   "within 1/300 of itself")
     if c.centered:
         before, after = two_rates(v.centering_check[0].success_rate, c.success_rate)
         source += f", centred by simulation (success under errors {before} -> {after})"
-    refined = final is not c
     for k, look in enumerate(looks):
         if kept[k]:
             before, after = two_rates(look.check[0].success_rate, look.chosen.success_rate)
             source += (f", then refined again on the run's simulations (success under new "
                        f"errors {before} -> {after})" if k == 0 else f", and again ({before} "
                        f"-> {after})")
-        elif look.close_in_failed:
-            source += (", then refined again but not kept: the refined layout failed at a layout "
-                       "within 1/300 of itself")
-    n_look = sum(look.n_simulations for look in looks)
+    n_look, screen, n_screen = sum(look.n_simulations for look in looks), None, 0
+    if s.close_in_copies and v.verified:
+        # the layout handed out must succeed where it is placed almost exactly; else the one
+        # it came from, then the race's runners-up, best rated first, whichever does first
+        order = list({id(t): t for t in (final, c, *v.runners_up)}.values())
+        sound, passed_over, n_screen = first_sound(order, recorded.simulate, recorded.validity,
+                                                   s.close_in_copies)
+        screen = {"copies": s.close_in_copies, "simulations": n_screen,
+                  "passed_over": list(passed_over), "kept": sound.source}
+        if sound is not final:
+            final = sound
+            source = (f"{sound.source}, kept by the knife-edge screen: {' and '.join(passed_over)}"
+                      f" failed at a layout within 1/300 of itself")
     return {"x": final.x, "source": source, "verified": v.verified,
-            "is_optimum": c.source == "optimum" and not c.centered and not refined,
-            "optimum_outcome": optimum.value, "n_simulations": v.n_simulations + n_look,
+            "is_optimum": final.source == "optimum" and not final.centered,
+            "optimum_outcome": optimum.value,
+            "n_simulations": v.n_simulations + n_look + n_screen,
             "by_stage": {"verification": v.n_simulations - v.n_centering_simulations,
                          **({"centering": v.n_centering_simulations}
                             if v.n_centering_simulations else {}),
-                         **({"second look": n_look} if n_look else {})},
+                         **({"second look": n_look} if n_look else {}),
+                         **({"close-in screen": n_screen} if n_screen else {})},
             "centering": centering,
             "second_look": _look_summary(looks[0], kept[0]) if looks else None,
             **({"more_looks": [_look_summary(lk, kp) for lk, kp in zip(looks[1:], kept[1:],
                                                                       strict=True)]}
                if len(looks) > 1 else {}),
-            **({"close_in": {"copies": s.close_in_copies, "passed_over": list(v.close_in_failed),
-                             "refined_not_kept": [k for k, lk in enumerate(looks)
-                                                  if lk.close_in_failed]}}
-               if s.close_in_copies else {}),
+            **({"close_in": screen} if screen else {}),
             "race_stages": list(v.race_stages),
             "candidates": [{"source": t.source, "vector": [float(u) for u in t.x],
                             "success_rate": t.success_rate, "valid_copies": t.n_valid,
