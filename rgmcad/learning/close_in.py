@@ -21,9 +21,12 @@ _STREAM = 0x4B4E_4946
 
 
 def close_in_sound(x: np.ndarray, simulate, validity, n: int) -> tuple[bool, int]:
-    """Whether ``x`` succeeds at all of ``n`` valid layouts uniform in the ball of radius
-    RADIUS around it (inside the cube), and the simulations that took. The layouts are drawn
-    from ``x`` alone: a resumed run draws the same, and two calls agree."""
+    """Whether ``x`` fails at no more than one in 16 (``n // 16``) of ``n`` valid layouts
+    uniform in the ball of radius RADIUS around it (inside the cube), and the simulations
+    that took. The layouts are drawn from ``x`` alone: a resumed run draws the same, and two
+    calls agree. One failure in 16 is let pass: a layout that succeeds at 97 % of those
+    layouts (twin_finish seed 1's, rho_g 0.547) failed the stricter screen and gave way to
+    one of 0.453; a knife edge (bucket_gate seed 0's, 66 %) still fails it 99 % of the time."""
     x = np.asarray(x, dtype=float)
     rng = np.random.default_rng([_STREAM, *np.frombuffer(x.tobytes(), np.uint32)])
     step = rng.standard_normal((8 * n, len(x)))
@@ -33,7 +36,8 @@ def close_in_sound(x: np.ndarray, simulate, validity, n: int) -> tuple[bool, int
     P = P[np.asarray(validity(P), dtype=bool)][:n] if len(P) else P
     if not len(P):
         return True, 0  # nothing valid that near: nothing to say against it
-    return all(label.success for label in simulate(P)), len(P)
+    failures = sum(not label.success for label in simulate(P))
+    return failures <= len(P) // 16, len(P)
 
 
 def first_sound(ranked, simulate, validity, n: int):
