@@ -112,4 +112,3 @@ def run(args) -> int:
     if args.html:
         say(f"replay: {args.html}")
     return 0 if result.outcome is Outcome.SUCCESS else 1
-
