@@ -85,7 +85,8 @@ def choose_layout(recorded, result, starts: dict[str, np.ndarray] | None = None,
     the words the summary gives for where it came from; then the second look
     (:func:`rgmcad.learning.second_look`) when the settings ask for it. ``seed`` seeds the
     centring and the second look's fit (streams of their own: the learning's draws do not
-    depend on them). ``on_stage(name)`` is told when the second look begins."""
+    depend on them). ``on_stage(name)`` is told when the second look and the close-in
+    screen begin."""
     from rgmcad.learning import second_look, verify_layout
 
     seen_X, seen = [result.X], list(result.labels)
@@ -147,6 +148,8 @@ def choose_layout(recorded, result, starts: dict[str, np.ndarray] | None = None,
     if s.close_in_copies and v.verified:
         # the layout handed out must succeed where it is placed almost exactly; else the one
         # it came from, then the race's runners-up, best rated first, whichever does first
+        if on_stage is not None:
+            on_stage("close-in screen")
         order = list({id(t): t for t in (final, c, *v.runners_up)}.values())
         sound, passed_over, n_screen = first_sound(order, recorded.simulate, recorded.validity,
                                                    s.close_in_copies)
