@@ -100,7 +100,8 @@ def simulate(scenario: Scenario, values, parts: Mapping[str, BuiltPart], *,
     check : run the validity test first (an invalid layout is not simulated); False for a
         layout already known valid.
     observer : called as ``observer(world, t)`` every ``observe_every`` steps and at the end
-        (for rendering; leave None for speed).
+        (for rendering; leave None for speed); ``observe_every = 0``: at the end only, with
+        nothing added to the step loop.
     engine, cache : reused by a caller that simulates many layouts (see
         :class:`~rgmcad.sim.world.World`); None: the simulation's own.
     hooks : called as ``hook(world, t)`` before every physics step, after the events
@@ -124,7 +125,7 @@ def simulate(scenario: Scenario, values, parts: Mapping[str, BuiltPart], *,
         scene = physics.apply(scene)
     built_at = time.perf_counter()
     settings = scenario.settings
-    if observer is not None:
+    if observer is not None and observe_every:
         hooks = (*hooks, _every(observer, observe_every))
     with World(scene, settings, engine, cache) as world:
         graph = CausalGraph(
@@ -142,19 +143,19 @@ def simulate(scenario: Scenario, values, parts: Mapping[str, BuiltPart], *,
                             built_at - start, ready_at - built_at)
 
 
-
 def final_poses(into: dict) -> dict:
     """Keyword arguments of :func:`simulate` that leave in ``into`` each body's pose in the
     world when the run stops: ``{body: {x, y, z (m), heading, pitch, roll (deg)}}``, as a
     layout file writes a pose (``rgmcad simulate --json``'s ``final_poses``)."""
-    def observe(world, t):  # called before the first step and at the end: the end stays
+    def observe(world, t):  # called once, when the run has stopped
         for name in world.handles:
             m = world.pose(name)
             h, p, r = hpr_of(m[:3, :3])
             into[name] = {"x": float(m[0, 3]), "y": float(m[1, 3]), "z": float(m[2, 3]),
                           "heading": float(h), "pitch": float(p), "roll": float(r)}
 
-    return {"observer": observe, "observe_every": 2**62}
+    return {"observer": observe, "observe_every": 0}
+
 
 def _placed_by_hand(scenario, values, parts, physics: PhysicsDraw, designed: Scene,
                     tolerance: float, cache) -> Scene:
