@@ -286,6 +286,7 @@ def test_readme_optimize_examples_name_the_directories_they_write():
     """Each ``rgmcad optimize`` line of the README with a ``# runs/...`` comment writes
     there, and each ``--layout runs/...`` after it uses a directory written above it."""
     from rgmcad.cli import build_parser
+    from rgmcad.cli.learning_settings import setting_changes
     from rgmcad.runs.workflow import default_run_dir
     from rgmcad.shipped import scenario_path
 
@@ -301,9 +302,10 @@ def test_readme_optimize_examples_name_the_directories_they_write():
         args = build_parser().parse_args(words[1:])
         if args.command == "optimize":
             name = tomllib.loads(scenario_path(args.scenario).read_text())["name"]
+            changes = setting_changes(args.changes, args.budget)
             where = args.run_dir or str(default_run_dir(name, args.budget, args.seed,
                                                         args.batch, args.full, args.start,
-                                                        args.centering))
+                                                        args.centering, changes))
             written.add(where.rstrip("/"))
             if comment.strip().startswith("runs/"):
                 assert comment.split()[0].rstrip("/") == where, line

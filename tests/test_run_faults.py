@@ -20,9 +20,10 @@ import numpy as np
 import pytest
 
 from rgmcad.errors import RunDirectoryError, UsageError
+from rgmcad.runs.evaluation import evaluate_layout
 from rgmcad.runs.executor import PoolExecutor, parent_only
 from rgmcad.runs.store import REJECTED, RESULT, SETTINGS, SIMULATIONS, RunStore, run_identity
-from rgmcad.runs.workflow import evaluate_layout, optimize_scenario
+from rgmcad.runs.workflow import optimize_scenario
 from tests._support import TINY, cli_output
 
 ROOT = Path(__file__).resolve().parent.parent

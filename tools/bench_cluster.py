@@ -30,9 +30,10 @@ import psutil
 from scipy.stats import qmc
 
 from rgmcad.runs.dask_executor import DaskExecutor
+from rgmcad.runs.evaluation import evaluate_layout
 from rgmcad.runs.executor import PoolExecutor
 from rgmcad.runs.problem import ScenarioProblem, simulate_task
-from rgmcad.runs.workflow import evaluate_layout, optimize_scenario
+from rgmcad.runs.workflow import optimize_scenario
 
 
 def valid_layouts(problem: ScenarioProblem, n: int, seed: int = 0) -> np.ndarray:

@@ -1,5 +1,5 @@
 """``rgmcad evaluate``: a layout's local and global robustness, by simulation
-(:func:`rgmcad.runs.workflow.evaluate_layout`)."""
+(:func:`rgmcad.runs.evaluation.evaluate_layout`)."""
 
 from __future__ import annotations
 
@@ -39,7 +39,7 @@ def configure(p: argparse.ArgumentParser) -> None:
 def run(args) -> int:
     from rgmcad.cli.paths import output_file
     from rgmcad.runs.checks import MAX_SAMPLES, MAX_SEED, check_range, check_workers, plot_suffixes
-    from rgmcad.runs.workflow import evaluate_layout
+    from rgmcad.runs.evaluation import evaluate_layout
 
     check_range(args.samples, 1, MAX_SAMPLES, "--samples", "a number of layouts per radius")
     check_range(args.seed, 0, MAX_SEED, "--seed", "a seed")

@@ -9,7 +9,7 @@ import json
 import sys
 from pathlib import Path
 
-from rgmcad.cli import physics
+from rgmcad.cli import learning_settings, physics
 from rgmcad.cli.common import (
     add_scenario_arg,
     add_scheduler_args,
@@ -48,6 +48,7 @@ def configure(p: argparse.ArgumentParser) -> None:
                    help="centre the chosen layout by simulation: auto (default) when the "
                    "exploration found fewer successes than it was to collect, always, or off "
                    "(the paper's pipeline); always/off get their own run directory")
+    learning_settings.add_set_arg(p)
     add_scheduler_args(p)
     physics.add_robustness_arg(p)
     p.add_argument("--json", action="store_true", help="print one JSON summary on stdout")
@@ -65,6 +66,7 @@ def run(args) -> int:
     check_workers(args.workers)
     if args.run_dir is not None:  # and again, trying, when the run store opens it
         output_dir(args.run_dir, "--run")
+    changes = learning_settings.setting_changes(args.changes, args.budget)
     note_first_build(args)
     bar = SimulationBar(enabled=not args.quiet)
     try:
@@ -73,7 +75,7 @@ def run(args) -> int:
                                  build_dir=args.build_dir, progress=bar,
                                  parts_dir=parts_dir_arg(args), scheduler=args.scheduler,
                                  batch=args.batch, full=args.full, starts=args.start,
-                                 centering=args.centering,
+                                 centering=args.centering, changes=changes,
                                  **physics.robustness_options(args))
     finally:
         bar.close()

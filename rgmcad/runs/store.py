@@ -168,7 +168,8 @@ class RunStore:
         more = f" (and {len(diffs) - 3} more)" if len(diffs) > 3 else ""
         raise RunDirectoryError(str(path), diffs[0][0] if diffs else "",
                             f"this run directory was made for another run ({shown}{more}); "
-                            "use the same scenario file, seed and budget, or another --run DIR")
+                            "use the same scenario file, seed, budget and options (--set, "
+                            "--batch, ...), or another --run DIR")
 
     def _load(self) -> None:
         path = self.directory / SIMULATIONS

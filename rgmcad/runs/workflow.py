@@ -1,4 +1,5 @@
-"""The workflows behind ``rgmcad optimize`` and ``rgmcad evaluate``.
+"""The workflow behind ``rgmcad optimize`` (``rgmcad evaluate``'s is
+:mod:`rgmcad.runs.evaluation`).
 
 :func:`optimize_scenario`: learn a scenario's success probability and refine the most robust
 layout (paper sections 5-7) in a run directory that survives interruptions
@@ -7,18 +8,15 @@ layout (paper sections 5-7) in a run directory that survives interruptions
 tolerances in real units), ``start.json``, ``result.json`` (written last: the run is
 finished), ``report.md`` and its plots (:mod:`rgmcad.runs.report`).
 
-:func:`evaluate_layout`: a layout's local and global robustness by simulation
-(:mod:`rgmcad.runs.robustness`) and its plot.
-
-Both spread simulations over a process pool (:mod:`rgmcad.runs.executor`) and report
-progress to a :class:`RunProgress`; neither prints.
+It spreads simulations over a process pool (:mod:`rgmcad.runs.executor`) and reports
+progress to a :class:`RunProgress`; it does not print.
 """
 
 from __future__ import annotations
 
 import json
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -30,14 +28,12 @@ from rgmcad.parts.family import family_digest
 from rgmcad.parts.store import DEFAULT_BUILD_DIR
 from rgmcad.runs.checks import (
     MAX_BATCH,
-    MAX_SAMPLES,
     MAX_SEED,
-    check_plot_file,
     check_range,
     check_workers,
 )
-from rgmcad.runs.executor import make_executor, map_blocks, scheduler_from_env
-from rgmcad.runs.problem import ScenarioProblem, SimRecord, scenario_digest, validity_task
+from rgmcad.runs.executor import make_executor, scheduler_from_env
+from rgmcad.runs.problem import ScenarioProblem, SimRecord, scenario_digest
 from rgmcad.runs.report import (
     PROGRESS_PLOT,
     REPORT_FILE,
@@ -54,7 +50,7 @@ from rgmcad.scene.perturbation import DEFAULT_PHYSICS, PhysicsRanges
 from rgmcad.sim.run import Outcome
 
 __all__ = ["LAYOUT_FILE", "START_FILE", "RunProgress", "OptimizationRun", "default_run_dir",
-           "optimize_scenario", "evaluate_layout"]
+           "optimize_scenario"]
 
 LAYOUT_FILE = "layout.json"
 START_FILE = "start.json"
@@ -92,15 +88,23 @@ class OptimizationRun:
 
 def default_run_dir(scenario_name: str, budget: str, seed: int, batch: int | None = None,
                     full: bool = False, starts: Sequence[str] = (),
-                    centering: str | None = None) -> Path:
+                    centering: str | None = None, changes: Mapping | None = None) -> Path:
     """``runs/SCENARIO-sSEED``, or ``runs/SCENARIO-BUDGET-sSEED`` for another budget, with
-    ``-bN`` (``--batch``), ``-full``, ``-centring-always|off`` (``--centering``) and
-    ``-from-NAME+...`` (the start layouts, ``--start``) before ``-sSEED``."""
+    ``-bN`` (``--batch``), ``-full``, ``-centring-always|off`` (``--centering``), ``-KEY=VALUE``
+    (each setting changed, ``--set``, by name) and ``-from-NAME+...`` (the start layouts,
+    ``--start``) before ``-sSEED``."""
     tag = "" if budget == "default" else f"-{budget}"
     tag += ("" if batch is None else f"-b{batch}") + ("-full" if full else "")
     tag += "" if centering in (None, "auto") else f"-centring-{centering}"
+    tag += "".join(f"-{k}={_setting_text(v)}" for k, v in sorted((changes or {}).items()))
     tag += starts_tag(starts)
     return Path("runs") / f"{scenario_name}{tag}-s{seed}"
+
+
+def _setting_text(value) -> str:
+    if isinstance(value, tuple):
+        return ",".join(_setting_text(v) for v in value)
+    return str(value).lower() if isinstance(value, bool | None) else str(value)
 
 
 def optimize_scenario(
@@ -112,6 +116,7 @@ def optimize_scenario(
     batch: int | None = None, robustness_samples: int = 0,
     physics: PhysicsRanges | None = DEFAULT_PHYSICS, physics_noise: PhysicsRanges | None = None,
     full: bool = False, starts: Sequence[str] = (), centering: str | None = None,
+    changes: Mapping | None = None,
 ) -> OptimizationRun:
     """Optimise a scenario's layout in a run directory, or continue an interrupted run there.
 
@@ -138,7 +143,7 @@ def optimize_scenario(
     batch : the exploration's batch size (``LearningSettings.exploration_batch``, 1..10 000)
         instead of the settings'; part of the run's identity and default directory.
     robustness_samples : when > 0, the chosen layout's rho_g is estimated with that many
-        layouts per radius (:func:`evaluate_layout`'s protocol, seed ``seed``), under placement
+        layouts per radius (``rgmcad evaluate``'s protocol, seed ``seed``), under placement
         errors and, with ``physics``, under placement plus physical errors: the summary's
         ``robustness``. Not journaled: an interrupted run redoes it.
     physics_noise : every learning (and verification) simulation with its own physical
@@ -147,6 +152,8 @@ def optimize_scenario(
     full : one success model for the whole graph (``factorized=False``; paper Fig. 16).
     centering : ``LearningSettings.centering`` instead of the settings' (``"auto"``,
         ``"always"`` or ``"off"``); part of the run's identity and default directory.
+    changes : ``{field: value}`` of LearningSettings changed from the settings' (``--set``);
+        part of the run's identity and default directory.
     starts : the user's layouts to start from (``--start``: names of the scenario's layouts
         or layout files, :mod:`rgmcad.runs.starts`), checked before any simulation;
         simulated first by the exploration and always candidates of the final choice. Part
@@ -163,6 +170,7 @@ def optimize_scenario(
     settings = budget_settings(budget) if settings is None else settings
     settings = settings.replace(factorized=False) if full else settings
     settings = settings if centering is None else settings.replace(centering=centering)
+    settings = settings.replace(**(changes or {}))
     given = run_dir is not None
     if batch is not None:
         check_range(batch, 1, MAX_BATCH, "batch", "a number of simulations per batch")
@@ -177,7 +185,7 @@ def optimize_scenario(
         identity["physics_noise"] = physics_noise.to_json()
     tag = "" if physics_noise is None else "-physics"
     run_dir = Path(run_dir) if run_dir else default_run_dir(
-        scenario.name, budget, seed, batch, full, list(start_vectors), centering)
+        scenario.name, budget, seed, batch, full, list(start_vectors), centering, changes)
     run_dir = run_dir.with_name(run_dir.name + tag) if tag and not given else run_dir
     problem = ScenarioProblem(scenario_path, build_dir, parts_dir) if start_vectors else None
     check_starts_valid(problem, start_vectors)  # before any simulation
@@ -375,75 +383,3 @@ def _factor(scenario, result, event) -> dict:
     if event in result.accuracy:
         out["accuracy"] = [float(v) for v in result.accuracy[event]]
     return out
-
-
-# --- evaluate ---------------------------------------------------------------------------------
-
-
-def evaluate_layout(
-    scenario_path: str | Path, layout: str, *, samples: int = 50, seed: int = 0,
-    workers: int | None = None, build_dir: str | Path = DEFAULT_BUILD_DIR,
-    plot: str | Path | None = None, progress: RunProgress | None = None,
-    parts_dir: str | Path | None = None, scheduler: str | None = None,
-    physics: PhysicsRanges | None = DEFAULT_PHYSICS,
-) -> dict:
-    """Local robustness of a layout at every radius and its global robustness rho_g
-    (:func:`~rgmcad.runs.robustness.local_robustness`), and their plot; with ``physics``
-    (default: :data:`~rgmcad.scene.perturbation.DEFAULT_PHYSICS`; None: placement only),
-    also under placement plus physical errors, on the same layouts.
-
-    Parameters
-    ----------
-    layout : a named layout of the scenario or a layout file.
-    samples : valid layouts simulated per radius, 1..100 000.
-    plot : the PNG (or any matplotlib format) to write, checked before the simulations;
-        default: beside a layout file, else
-        ``robustness-SCENARIO-LAYOUT.png`` in the working directory.
-    parts_dir : a folder of the user's part families (``--parts``; None: the shipped ones).
-    scheduler : a Dask scheduler's address or ``local:N`` (None: ``RGMCAD_SCHEDULER`` if set,
-        else local processes).
-
-    Returns
-    -------
-    dict
-        What ``rgmcad evaluate --json`` prints.
-    """
-    from rgmcad.runs.robustness import figures, plot_curves, robustness_on
-    from rgmcad.scene.design_space import vector_from_values
-    from rgmcad.scene.layout_files import resolve_layout
-    from rgmcad.scene.loader import load_scenario
-
-    progress = progress or RunProgress()
-    check_range(samples, 1, MAX_SAMPLES, "samples", "a number of layouts per radius")
-    check_range(seed, 0, MAX_SEED, "seed", "a seed")
-    check_workers(workers, "workers")
-    scenario = load_scenario(scenario_path, parts_dir=parts_dir)
-    name, values = resolve_layout(scenario, layout, None)
-    x = vector_from_values(scenario, values)
-    if plot is None:
-        plot = (Path(layout).with_name(f"{Path(layout).stem}-robustness.png")
-                if Path(layout).is_file() else Path(f"robustness-{scenario.name}-{name}.png"))
-    check_plot_file(plot, "plot")  # before the simulations, not after
-    start = time.perf_counter()
-    problem = ScenarioProblem(scenario_path, build_dir, parts_dir)
-    executor = make_executor(workers, problem.context, scheduler=scheduler_from_env(scheduler),
-                             payload=problem.payload)
-    progress.stage("validity")
-
-    def validity(X):
-        here = min(len(X), executor.workers) <= 1
-        ok = problem.validity(X) if here else map_blocks(executor, validity_task, X)
-        progress.tested(len(X))
-        return ok
-
-    try:
-        curve = robustness_on(executor, x, validity, samples, seed, physics, progress)
-    finally:
-        executor.close()
-    wall = time.perf_counter() - start
-    plot_curves({name: curve}, plot, title=f"{scenario.name}: local robustness of {name}")
-    return {"scenario": scenario.name, "layout": name, "vector": [float(v) for v in x],
-            **figures(curve, physics), "validity_tests": curve.validity_tests,
-            "samples_per_radius": samples, "eta": curve.eta, "seed": seed,
-            "wall_time": wall, "plot": str(plot)}
-
