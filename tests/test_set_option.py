@@ -90,3 +90,13 @@ def test_values_read_as_their_settings_type():
     assert default_run_dir("simple", "default", 0, changes=changes).name == (
         "simple-close_in_copies=16-error_radius=0.5-mi_selection=marginal-"
         "sobol_scramble=false-svm_C_grid=0.1,1.0,10.0-svm_class_weights=none,balanced-s0")
+
+
+def test_a_pair_is_checked_with_the_other_flags_settings(tmp_path):
+    # --centering always centres by simulation, judged at the final choice's errors
+    code, _, err = cli_output(["optimize", SIMPLE, "--budget", "small", "--run",
+                               str(tmp_path / "r"), "--centering", "always", "--set",
+                               "verify_samples=0", "--set", "centering_simulations=64"])
+    assert code == 2 and len(err.strip().splitlines()) == 1
+    assert "--set: verify_samples: centering_simulations needs verify_samples > 0" in err
+    assert not (tmp_path / "r").exists()

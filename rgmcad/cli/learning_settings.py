@@ -23,10 +23,19 @@ def add_set_arg(p: argparse.ArgumentParser) -> None:
                    "(runs/SCENARIO-KEY=VALUE-sSEED)")
 
 
-def setting_changes(pairs: list[str], budget: str) -> dict:
+def changes_of(args) -> dict:
+    """``optimize``'s ``--set`` flags, checked with its budget and its other flags."""
+    flags = {"centering": args.centering, "factorized": False if args.full else None,
+             "exploration_batch": args.batch}
+    return setting_changes(args.changes, args.budget,
+                           {k: v for k, v in flags.items() if v is not None})
+
+
+def setting_changes(pairs: list[str], budget: str, flags: dict | None = None) -> dict:
     """``{field: value}`` of ``--set KEY=VALUE`` flags, each value read as its field's type;
     a malformed pair, an unknown or repeated key, a value of the wrong type or one the
-    settings refuse (on ``budget``'s settings): :class:`~rgmcad.errors.UsageError`."""
+    settings refuse (``budget``'s settings with ``flags``, the settings other flags change):
+    :class:`~rgmcad.errors.UsageError`."""
     import typing
 
     from rgmcad.errors import UsageError
@@ -49,13 +58,12 @@ def setting_changes(pairs: list[str], budget: str) -> dict:
             raise UsageError("--set", key, "given twice")
         changes[key] = _read(text.strip(), types[key], key)
     try:
-        budget_settings(budget).replace(**changes)
+        budget_settings(budget).replace(**(flags or {}), **changes)
     except (ValueError, TypeError) as exc:  # the settings' own checks, in their words
-        named = [k for k in changes if f"LearningSettings.{k}" in str(exc)]
-        message = str(exc)
-        for k in named:
-            message = message.replace(f"LearningSettings.{k} ", "")
-        raise UsageError("--set", named[0] if named else "", message) from None
+        text = str(exc)  # the key it names first, else one it mentions
+        key = min(changes, key=lambda k: (f"LearningSettings.{k} " not in text, k not in text))
+        message = text.replace(f"LearningSettings.{key} ", "").replace("LearningSettings.", "")
+        raise UsageError("--set", key, message) from None
     return changes
 
 

@@ -66,7 +66,7 @@ def run(args) -> int:
     check_workers(args.workers)
     if args.run_dir is not None:  # and again, trying, when the run store opens it
         output_dir(args.run_dir, "--run")
-    changes = learning_settings.setting_changes(args.changes, args.budget)
+    changes = learning_settings.changes_of(args)
     note_first_build(args)
     bar = SimulationBar(enabled=not args.quiet)
     try:
