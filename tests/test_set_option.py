@@ -98,5 +98,5 @@ def test_a_pair_is_checked_with_the_other_flags_settings(tmp_path):
                                str(tmp_path / "r"), "--centering", "always", "--set",
                                "verify_samples=0", "--set", "centering_simulations=64"])
     assert code == 2 and len(err.strip().splitlines()) == 1
-    assert "--set: verify_samples: centering_simulations needs verify_samples > 0" in err
+    assert "--set: centering_simulations: needs verify_samples > 0" in err
     assert not (tmp_path / "r").exists()
