@@ -15,6 +15,7 @@ from pathlib import Path
 import pytest
 
 from rgmcad.cli import main
+from rgmcad.errors import RunDirectoryError
 from rgmcad.runs.benchmark import PLOT, TABLE_JSON, TABLE_MD, run_benchmark
 from tests._support import TINY
 
@@ -98,6 +99,11 @@ def test_ours_sets_the_budget_and_every_baseline_and_given_layout_is_paired_with
     again = run_benchmark(SIMPLE, tmp_path, methods=("ours", "full", "b1", "b2"), trials=2,
                           samples=1, ours_budget="small", ours_settings=TINY, workers=1)
     assert _without_times(again) == _without_times(table)
+    # ours' finished trials are not passed off as those of other settings (--set)
+    with pytest.raises(RunDirectoryError, match=r"settings\.verify_samples.*another --out"):
+        run_benchmark(SIMPLE, tmp_path, methods=("ours",), trials=2, samples=1,
+                      ours_budget="small", ours_settings=TINY.replace(verify_samples=32),
+                      workers=1)
 
     # a maker's own layouts as rows: the scenario's `solved`, and ours' trial-0 layout given
     # back as a file, each evaluated under every trial's errors like the methods' layouts
@@ -172,6 +178,8 @@ def test_a_row_joins_the_table_only_under_the_same_protocol(tmp_path):
     (["benchmark", "simple", "--reference", "nowhere.json"], "--reference"),
     (["benchmark", "simple", "--reference", "initial", "--reference", "nowhere"],
      "--reference"),
+    (["benchmark", "simple", "--set", "verify_samples=-1"], "--set: verify_samples"),
+    (["benchmark", "simple", "--set", "nosuch=1"], "not a learning setting"),
 ])
 def test_bad_requests_are_one_line_before_any_simulation(argv, word, tmp_path, capfd):
     assert main(["--build-dir", str(ROOT / "build" / "parts"), *argv,

@@ -16,6 +16,7 @@ from rgmcad.cli.common import (
     parts_dir_arg,
     say,
 )
+from rgmcad.cli.learning_settings import add_set_arg, setting_changes
 from rgmcad.cli.physics import add_physics_arg, physics_arg
 
 __all__ = ["configure", "run"]
@@ -53,6 +54,7 @@ def configure(p: argparse.ArgumentParser) -> None:
     p.add_argument("--ours-budget", type=budget_name, default="default",
                    metavar="{default,small}", help="settings of our method (default: the "
                    "paper's Table 1 settings)")
+    add_set_arg(p, "ours' settings only (give the benchmark another --out)")
     p.add_argument("--workers", type=int, default=None, help="simulation processes, 1 to 4 per "
                    "CPU (default: every CPU); results do not depend on it")
     p.add_argument("--reference", action="append", default=[], metavar="LAYOUT",
@@ -80,11 +82,13 @@ class _Stages:
 
 def run(args) -> int:
     from rgmcad.cli.paths import output_dir
+    from rgmcad.learning.settings import budget
     from rgmcad.runs.benchmark import DEFAULT_METHODS, TABLE_MD, run_benchmark
     from rgmcad.runs.checks import check_workers
     from rgmcad.scene.loader import load_scenario
 
     check_workers(args.workers)
+    changes = setting_changes(args.changes, args.ours_budget)
     physics = physics_arg(args)
     parts_dir = parts_dir_arg(args)
     scenario = load_scenario(args.scenario, parts_dir=parts_dir)  # refused before any folder
@@ -93,6 +97,8 @@ def run(args) -> int:
     table = run_benchmark(args.scenario, out, methods=args.methods or DEFAULT_METHODS,
                           trials=args.trials, seed=args.seed, budget_sims=args.budget_sims,
                           samples=args.samples, ours_budget=args.ours_budget,
+                          ours_settings=budget(args.ours_budget).replace(**changes) if changes
+                          else None,
                           workers=args.workers, build_dir=args.build_dir, progress=_Stages(),
                           scheduler=args.scheduler, parts_dir=parts_dir, physics=physics,
                           references=args.reference)

@@ -14,13 +14,12 @@ _OWN_FLAGS = {"exploration_batch": "--batch", "factorized": "--full",
 _TRUE, _FALSE = ("true", "yes", "on", "1"), ("false", "no", "off", "0")
 
 
-def add_set_arg(p: argparse.ArgumentParser) -> None:
+def add_set_arg(p: argparse.ArgumentParser, where: str) -> None:
     p.add_argument("--set", action="append", default=[], dest="changes", metavar="KEY=VALUE",
                    help="change one learning setting from the budget's (repeatable), e.g. "
                    "second_look_rounds=3, close_in_copies=16, verify_samples=512, "
                    "svm_C_grid=0.1,1,10; every setting, its default and why: "
-                   "rgmcad/learning/settings.py; the run gets a directory of its own "
-                   "(runs/SCENARIO-KEY=VALUE-sSEED)")
+                   f"rgmcad/learning/settings.py; {where}")
 
 
 def changes_of(args) -> dict:

@@ -48,7 +48,7 @@ def configure(p: argparse.ArgumentParser) -> None:
                    help="centre the chosen layout by simulation: auto (default) when the "
                    "exploration found fewer successes than it was to collect, always, or off "
                    "(the paper's pipeline); always/off get their own run directory")
-    learning_settings.add_set_arg(p)
+    learning_settings.add_set_arg(p, "the run gets a directory of its own (runs/SCENARIO-KEY=VALUE-sSEED)")
     add_scheduler_args(p)
     physics.add_robustness_arg(p)
     p.add_argument("--json", action="store_true", help="print one JSON summary on stdout")

@@ -59,7 +59,7 @@ from rgmcad.runs.checks import MAX_SAMPLES, MAX_SEED, check_range, check_workers
 from rgmcad.runs.executor import make_executor, scheduler_from_env
 from rgmcad.runs.problem import ScenarioProblem, scenario_digest, simulate_layout_task
 from rgmcad.runs.starts import safe_name
-from rgmcad.runs.store import RecordedProblem, RunStore
+from rgmcad.runs.store import RecordedProblem, RunStore, run_identity
 from rgmcad.scene.perturbation import DEFAULT_PHYSICS, PhysicsRanges
 
 __all__ = ["METHODS", "DEFAULT_METHODS", "LEARNERS", "LABELS", "TRIAL", "TABLE_MD",
@@ -128,6 +128,7 @@ def _ours(method: str, scenario_path, out: Path, seed: int, budget: str, setting
         settings = replace(settings, factorized=False)
     done = _read(run_dir / TRIAL)
     if done is not None:
+        _check_same_settings(run_dir, settings)
         return done
     timed: list[_Timed] = []
 
@@ -275,6 +276,21 @@ def _references(scenario, problem, layouts: Sequence[str]) -> dict[str, np.ndarr
     given = resolve_starts(scenario, layouts, _REFERENCE)
     check_starts_valid(problem, given, _REFERENCE)
     return given
+
+
+def _check_same_settings(run_dir: Path, settings) -> None:
+    """A finished trial of ours is reused only if it learned with ``settings``."""
+    from rgmcad.errors import RunDirectoryError
+
+    stored = (_read(run_dir / "settings.json") or {}).get("settings")
+    asked = run_identity("", "", 0, settings)["settings"]
+    if stored is not None and stored != asked:
+        changed = sorted(k for k in {*stored, *asked} if stored.get(k) != asked.get(k))
+        key = changed[0]
+        raise RunDirectoryError(str(run_dir / "settings.json"), f"settings.{key}",
+                                f"this trial of ours learned with {stored.get(key)!r}, the "
+                                f"command asks {asked.get(key)!r}; give the benchmark another "
+                                "--out")
 
 
 def run_benchmark(scenario_path, out_dir, *, methods=DEFAULT_METHODS, trials: int = 10,
