@@ -2,8 +2,10 @@
 wall time of a default run, and rho_g (by `rgmcad evaluate`, same sample count for all; under
 placement errors and under placement plus physical errors) of the optimised layout, of the
 best exploration sample (`start.json`) and of a reference layout of the scenario file
-(`solved`, or e.g. `hand` for the held-out files in tools/generality/). Runs resume: an
-existing run or evaluation in OUT is reused, so use a fresh OUT for other settings.
+(`solved`, or e.g. `hand` for the held-out files in tools/generality/), each run's layouts
+with their difference to the reference and its 95 % half-width (above, level or below). Runs
+resume: an existing run or evaluation in OUT is reused, so use a fresh OUT for other
+settings.
 
     uv run python tools/acceptance_optimize.py [--scenarios simple tools/generality/x.toml]
         [--seeds 0 1 2] [--samples 50] [--reference solved]
@@ -51,6 +53,23 @@ def both(evaluation: dict) -> np.ndarray:
 WHAT = {"layout": "optimised", "start": "best exploration sample"}
 
 
+def half_widths(evaluation: dict) -> np.ndarray:
+    """The 95 % half-widths of :func:`both`'s two figures."""
+    return np.array([np.diff(evaluation["rho_g_interval"])[0],
+                     np.diff(evaluation["physics"]["rho_g_interval"])[0]]) / 2.0
+
+
+def versus(mine: dict, other: dict, name: str) -> str:
+    """``mine`` minus ``other`` for both figures, each with the 95 % half-width of the
+    difference of two independent evaluations, and whether it is above, level or below."""
+    diff = both(mine) - both(other)
+    half = np.hypot(half_widths(mine), half_widths(other))
+    words = ["above" if d - h > 0 else "below" if d + h < 0 else "level"
+             for d, h in zip(diff, half, strict=True)]
+    return f"vs {name} " + " / ".join(f"{d:+.3f} +- {h:.3f} ({w})"
+                                      for d, h, w in zip(diff, half, words, strict=True))
+
+
 def fmt(rho: np.ndarray) -> str:
     return f"{rho[0]:.3f} / {rho[1]:.3f}"
 
@@ -89,18 +108,22 @@ def main() -> None:
     for given in args.scenarios:
         scenario = given if given.endswith(".toml") else f"scenarios/{given}.toml"
         name = Path(scenario).stem
-        solved = both(cached(out / f"eval-{name}-{ref}.json", "evaluate", scenario, "--layout",
-                             ref, "--out", str(out / f"{name}-{ref}.png"), *evaluate))
+        reference = cached(out / f"eval-{name}-{ref}.json", "evaluate", scenario, "--layout",
+                           ref, "--out", str(out / f"{name}-{ref}.png"), *evaluate)
+        solved = both(reference)
         rows = []
         for seed in args.seeds:
             run = out / f"{name}-s{seed}"
             summary = cached(out / f"{name}-s{seed}.json", "optimize", scenario, "--run",
                              str(run), "--seed", str(seed), "--budget", args.budget, *common)
-            rho = {lay: both(cached(out / f"eval-{name}-s{seed}-{lay}.json", "evaluate",
-                                    scenario, "--layout", str(run / f"{lay}.json"), *evaluate))
-                   for lay in args.layouts}
+            evaluations = {lay: cached(out / f"eval-{name}-s{seed}-{lay}.json", "evaluate",
+                                       scenario, "--layout", str(run / f"{lay}.json"),
+                                       *evaluate) for lay in args.layouts}
+            rho = {lay: both(e) for lay, e in evaluations.items()}
             rows.append(rho)
-            found = "; ".join(f"{WHAT[lay]} {fmt(rho[lay])}" for lay in args.layouts)
+            found = "; ".join(f"{WHAT[lay]} {fmt(rho[lay])} "
+                              f"({versus(evaluations[lay], reference, ref)})"
+                              for lay in args.layouts)
             print(f"{name} seed {seed}: {summary['simulations']} simulations, "
                   f"{summary['wall_time']:.1f} s, chosen: {summary['source']}; rho_g (placement, "
                   f"+ physics) {found}")
