@@ -1,12 +1,13 @@
-"""``optimize --set KEY=VALUE``: a learning setting changed from the budget's, read as the
-type of its field of :class:`~rgmcad.learning.settings.LearningSettings` and checked by it."""
+"""``--set KEY=VALUE`` of ``optimize`` and ``benchmark``: a learning setting changed from the
+budget's, read as the type of its field of :class:`~rgmcad.learning.settings.LearningSettings`
+and checked by it."""
 
 from __future__ import annotations
 
 import argparse
 import math
 
-__all__ = ["add_set_arg", "setting_changes"]
+__all__ = ["add_set_arg", "changes_of", "setting_changes"]
 
 # settings with flags of their own: one way to ask for each, one directory name for each
 _OWN_FLAGS = {"exploration_batch": "--batch", "factorized": "--full",
