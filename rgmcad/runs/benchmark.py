@@ -59,7 +59,7 @@ from rgmcad.runs.checks import MAX_SAMPLES, MAX_SEED, check_range, check_workers
 from rgmcad.runs.executor import make_executor, scheduler_from_env
 from rgmcad.runs.problem import ScenarioProblem, scenario_digest, simulate_layout_task
 from rgmcad.runs.starts import safe_name
-from rgmcad.runs.store import RecordedProblem, RunStore, run_identity
+from rgmcad.runs.store import RecordedProblem, RunStore, identity_differences, run_identity
 from rgmcad.scene.perturbation import DEFAULT_PHYSICS, PhysicsRanges
 
 __all__ = ["METHODS", "DEFAULT_METHODS", "LEARNERS", "LABELS", "TRIAL", "TABLE_MD",
@@ -283,14 +283,13 @@ def _check_same_settings(run_dir: Path, settings) -> None:
     from rgmcad.errors import RunDirectoryError
 
     stored = (_read(run_dir / "settings.json") or {}).get("settings")
-    asked = run_identity("", "", 0, settings)["settings"]
-    if stored is not None and stored != asked:
-        changed = sorted(k for k in {*stored, *asked} if stored.get(k) != asked.get(k))
-        key = changed[0]
-        raise RunDirectoryError(str(run_dir / "settings.json"), f"settings.{key}",
-                                f"this trial of ours learned with {stored.get(key)!r}, the "
-                                f"command asks {asked.get(key)!r}; give the benchmark another "
-                                "--out")
+    diffs = [] if stored is None else identity_differences(
+        stored, run_identity("", "", 0, settings)["settings"], "settings.")
+    if diffs:
+        key, had, asked = diffs[0]
+        raise RunDirectoryError(str(run_dir / "settings.json"), key,
+                                f"this trial of ours learned with {had!r}, the command asks "
+                                f"{asked!r}; give the benchmark another --out")
 
 
 def run_benchmark(scenario_path, out_dir, *, methods=DEFAULT_METHODS, trials: int = 10,

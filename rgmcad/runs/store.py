@@ -56,8 +56,8 @@ from rgmcad.runs.executor import map_blocks, parent_only
 from rgmcad.runs.lock import DirectoryLock, LockedError
 from rgmcad.runs.problem import SimRecord, simulate_layout_task, validity_task
 
-__all__ = ["RunStore", "RecordedProblem", "run_identity", "SETTINGS", "SIMULATIONS", "RESULT",
-           "MODEL", "REJECTED"]
+__all__ = ["RunStore", "RecordedProblem", "run_identity", "identity_differences", "SETTINGS",
+           "SIMULATIONS", "RESULT", "MODEL", "REJECTED"]
 
 logger = logging.getLogger(__name__)
 
@@ -163,7 +163,7 @@ class RunStore:
                                 "choose another --run") from None
         if stored == self.identity:
             return
-        diffs = _differences(stored, self.identity)
+        diffs = identity_differences(stored, self.identity)
         shown = "; ".join(f"{k}: run has {a!r}, command asks {b!r}" for k, a, b in diffs[:3])
         more = f" (and {len(diffs) - 3} more)" if len(diffs) > 3 else ""
         raise RunDirectoryError(str(path), diffs[0][0] if diffs else "",
@@ -322,12 +322,12 @@ def _reason(exc: OSError | ValueError) -> str:
 _MISSING = type("_Missing", (), {"__repr__": lambda self: "nothing"})()
 
 
-def _differences(a, b, prefix: str = "") -> list[tuple[str, Any, Any]]:
+def identity_differences(a, b, prefix: str = "") -> list[tuple[str, Any, Any]]:
     """Keys (dotted) whose values differ; a key only one side has counts, even against None."""
     if isinstance(a, dict) and isinstance(b, dict):
         out = []
         for k in list(a) + [k for k in b if k not in a]:
-            out += _differences(a.get(k, _MISSING), b.get(k, _MISSING), f"{prefix}{k}.")
+            out += identity_differences(a.get(k, _MISSING), b.get(k, _MISSING), f"{prefix}{k}.")
         return out
     return [] if a == b else [(prefix.rstrip("."), a, b)]
 
