@@ -187,23 +187,27 @@ def expected_ids(label):
     return {4 * slot + c for c in range(4)}
 
 
-_DETECTED: dict[int, dict] = {}
-_STITCHED: dict[int, np.ndarray] = {}
+# Caches keyed by id() hold the keyed object too: a freed page's id can be handed to a new
+# one, which would otherwise read the old page's marks.
+_DETECTED: dict[tuple, tuple] = {}
+_STITCHED: dict[tuple, tuple] = {}
+
+
+def _cached(cache, obj, extra, make):
+    key = (id(obj), extra)
+    if key not in cache:
+        cache[key] = (obj, make())
+    return cache[key][1]
 
 
 def detect_page(pages, index):
     """Marks of page ``index`` (0-based), detected once per test module."""
-    key = id(pages[index])
-    if key not in _DETECTED:
-        _DETECTED[key] = detect(pages[index])
-    return _DETECTED[key]
+    return _cached(_DETECTED, pages[index], None, lambda: detect(pages[index]))
 
 
 def stitch(result, pages):
     """Warp every tiled sheet, by its detected marks, onto one canvas in drawing mm."""
-    if id(result) not in _STITCHED:
-        _STITCHED[id(result)] = _stitch(result, pages)
-    return _STITCHED[id(result)]
+    return _cached(_STITCHED, result, None, lambda: _stitch(result, pages))
 
 
 def _stitch(result, pages):
@@ -238,10 +242,7 @@ _MASKS: dict = {}
 
 
 def part_mask(canvas, rgb):
-    key = (id(canvas), tuple(rgb))
-    if key not in _MASKS:
-        _MASKS[key] = _part_mask(canvas, rgb)
-    return _MASKS[key]
+    return _cached(_MASKS, canvas, tuple(rgb), lambda: _part_mask(canvas, rgb))
 
 
 def _part_mask(canvas, rgb):
