@@ -896,6 +896,33 @@ def test_exploration_step_is_the_papers_wherever_draws_keep_their_progress():
     assert set(held.step_scales) == {1.0}
 
 
+def test_draws_that_move_a_few_coordinates_keep_the_rest_of_their_parent():
+    # eight coordinates, two events on coordinates of their own
+    oracle = ProductOracle(8, {"e0": OracleEvent((), (0,), BoxRegion((0.0,), (0.5,))),
+                               "e1": OracleEvent(("e0",), (1,), BoxRegion((0.3,), (0.6,)))})
+    settings = FAST.replace(n_initial=64, n_successes=30, exploration_batch=5,
+                            exploration_max_iter=40)
+    few = explore(oracle, settings.replace(exploration_moved=1.0), np.random.default_rng(3))
+    draws = few.X[settings.n_initial:]
+    assert len(draws) >= 20
+    moved = []
+    for i, x in enumerate(draws):
+        earlier = few.X[: settings.n_initial + i]
+        differ = (earlier != x).sum(axis=1).min()  # its parent is among the earlier samples
+        assert differ >= 1
+        moved.append(differ)
+    # one coordinate moves on average (and one at least): never more than a handful
+    assert max(moved) <= 5 and np.mean(moved) < 2.5
+    # 0 and d (or more) are the paper's draws, where every coordinate moves
+    everything = explore(oracle, settings, np.random.default_rng(3))
+    for m in (8.0, 20.0):
+        again = explore(oracle, settings.replace(exploration_moved=m), np.random.default_rng(3))
+        np.testing.assert_array_equal(again.X, everything.X)
+    # (a coordinate clipped to the cube's face can equal an earlier sample's there)
+    assert np.median([(everything.X[64 + i] != everything.X[: 64 + i]).sum(axis=1).min()
+                      for i in range(20)]) == 8
+
+
 def test_a_parameter_no_model_depends_on_goes_to_the_median_of_the_successes():
     # the third coordinate matters to no event: the refinement cannot move it, and with
     # unmodelled_at = "median" (the default) the layout takes the successes' median there

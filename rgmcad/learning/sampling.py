@@ -137,6 +137,16 @@ def _draw_mixture(means, weights, variances, n, rng) -> tuple[np.ndarray, np.nda
     return np.clip(X, 0.0, 1.0), comps
 
 
+def _few_moved(draws: np.ndarray, parents: np.ndarray, share: float,
+               rng: np.random.Generator) -> np.ndarray:
+    """``draws`` with each coordinate kept at its parent's value unless a coin of ``share``
+    says it moves; a row whose coins all say keep moves one coordinate drawn at random."""
+    moves = rng.random(draws.shape) < share
+    still = np.flatnonzero(~moves.any(axis=1))
+    moves[still, rng.integers(draws.shape[1], size=len(still))] = True
+    return np.where(moves, draws, parents)
+
+
 def first_valid(
     candidates: np.ndarray, validity: ValidityFn, n: int, chunk: int | None = None,
     rate: float = 1.0,
@@ -382,6 +392,8 @@ def explore(
                 X_all[top], w, s.exploration_variance * scale**2,
                 s.max_draws_factor * s.exploration_batch, rng,
             )
+            if 0 < s.exploration_moved < d:
+                cands = _few_moved(cands, X_all[top][comps], s.exploration_moved / d, rng)
             rate = mixture_valid / mixture_tested if mixture_tested else 1.0
             # the component index rides along as a last column, unseen by the validity test
             tagged, nt = first_valid(np.column_stack([cands, comps]),

@@ -26,10 +26,7 @@ def _log_grid() -> tuple[float, ...]:
 @dataclass(frozen=True)
 class LearningSettings:
     """Settings of exploration, classifier training, active learning, factorisation and
-    layout optimisation.
-
-    Build a variant with :meth:`replace` (``settings.replace(n_initial=50)``); the object is
-    frozen so that a run's settings can be stored with its result.
+    layout optimisation; frozen (a run stores them), varied by :meth:`replace`.
 
     Attributes
     ----------
@@ -60,14 +57,15 @@ class LearningSettings:
         paper's fixed step. Why (in many dimensions the paper's step undoes events that
         already worked): docs/decisions.md, "Exploration step".
     exploration_stall_batches : int, default 5
-        Added by rgmcad: after this many mixture batches in a row that left the N+ parents
-        unchanged, ties at their lowest count go to the newest, not the oldest
-        (:func:`~.sampling.exploration_parents`); 0: never (the paper). "Exploration stalls".
+        K > 0 (rgmcad's): after K mixture batches in a row that left the N+ parents unchanged,
+        ties at their lowest count go to the newest; 0: never (the paper). "Exploration stalls".
     exploration_stall_spacing : float, default 0.0
-        Added by rgmcad, off by default: once stalled, a sample closer than this many step
-        lengths (the mixtures' standard deviation times sqrt(d)) to a parent already chosen
-        waits until every sample farther away is chosen; 0: the newest alone. Measured, not
-        adopted: docs/decisions.md, "Parents spread apart after a stall".
+        s > 0 (rgmcad's, off): once stalled, parents keep s step lengths (the standard
+        deviation times sqrt(d)) apart where they can. "Parents spread apart after a stall".
+    exploration_moved : float, default 0.0
+        m > 0 (rgmcad's, off): each coordinate of a mixture draw moves with probability m / d,
+        one at least, the rest keep the parent's; 0: all move. "Draws that move a few
+        coordinates".
     sobol_scramble : bool, default True
         Scramble the Sobol sequence with the run's rng. The authors used an unscrambled
         sequence, so all their runs started from the same points; scrambling keeps the
@@ -301,6 +299,7 @@ class LearningSettings:
     exploration_keep_rate: float = 0.2
     exploration_stall_batches: int = 5
     exploration_stall_spacing: float = 0.0
+    exploration_moved: float = 0.0
     sobol_scramble: bool = True
     max_draws_factor: int = 100
     # Classifier
@@ -386,7 +385,7 @@ class LearningSettings:
             if not value > 0:
                 raise ValueError(f"LearningSettings.{name} must be > 0, got {value!r}")
         for name in ("search_growth", "smooth_min_alpha", "constraint_tolerance",
-                     "placement_noise", "exploration_stall_spacing"):
+                     "placement_noise", "exploration_stall_spacing", "exploration_moved"):
             if not getattr(self, name) >= 0:
                 raise ValueError(f"LearningSettings.{name} must be >= 0, got "
                                  f"{getattr(self, name)!r}")
