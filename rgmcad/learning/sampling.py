@@ -392,8 +392,8 @@ def explore(
                 X_all[top], w, s.exploration_variance * scale**2,
                 s.max_draws_factor * s.exploration_batch, rng,
             )
-            if 0 < s.exploration_moved < d:
-                cands = _few_moved(cands, X_all[top][comps], s.exploration_moved / d, rng)
+            if s.exploration_move_share < 1:
+                cands = _few_moved(cands, X_all[top][comps], s.exploration_move_share, rng)
             rate = mixture_valid / mixture_tested if mixture_tested else 1.0
             # the component index rides along as a last column, unseen by the validity test
             tagged, nt = first_valid(np.column_stack([cands, comps]),

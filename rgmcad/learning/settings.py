@@ -5,8 +5,7 @@ The defaults reproduce the settings behind the paper's Table 1 (the authors'
 disagree, because those are the settings that produced the published numbers. Where rgmcad
 deliberately departs from both, the field's comment says so and why.
 
-Units: the design space is the unit cube ``[0, 1]^d`` (SPEC section 3.2); every length or
-variance below is in those normalised units.
+Units: the unit cube ``[0, 1]^d`` of the design space (SPEC section 3.2), for every length.
 """
 
 from __future__ import annotations
@@ -62,10 +61,9 @@ class LearningSettings:
     exploration_stall_spacing : float, default 0.0
         s > 0 (rgmcad's, off): once stalled, parents keep s step lengths (the standard
         deviation times sqrt(d)) apart where they can. "Parents spread apart after a stall".
-    exploration_moved : float, default 0.0
-        m > 0 (rgmcad's, off): each coordinate of a mixture draw moves with probability m / d,
-        one at least, the rest keep the parent's; 0: all move. "Draws that move a few
-        coordinates".
+    exploration_move_share : float, default 1.0
+        p < 1 (rgmcad's, off): each coordinate of a mixture draw moves with probability p, one
+        at least, the rest keep the parent's; 1: all move. "Draws that move a few coordinates".
     sobol_scramble : bool, default True
         Scramble the Sobol sequence with the run's rng. The authors used an unscrambled
         sequence, so all their runs started from the same points; scrambling keeps the
@@ -299,7 +297,7 @@ class LearningSettings:
     exploration_keep_rate: float = 0.2
     exploration_stall_batches: int = 5
     exploration_stall_spacing: float = 0.0
-    exploration_moved: float = 0.0
+    exploration_move_share: float = 1.0
     sobol_scramble: bool = True
     max_draws_factor: int = 100
     # Classifier
@@ -374,6 +372,9 @@ class LearningSettings:
             if int(value) != value or value < 0:
                 raise ValueError(f"LearningSettings.{name} must be a non-negative integer, "
                                  f"got {value!r}")
+        if not 0.0 < self.exploration_move_share <= 1.0:
+            raise ValueError("LearningSettings.exploration_move_share must lie in (0, 1], got "
+                             f"{self.exploration_move_share!r}")
         for name in ("accuracy_target", "quasi_deterministic_rate", "exploration_keep_rate",
                      "mi_relative_threshold", "parent_probability_min", "tolerance_ratio"):
             value = getattr(self, name)
@@ -385,7 +386,7 @@ class LearningSettings:
             if not value > 0:
                 raise ValueError(f"LearningSettings.{name} must be > 0, got {value!r}")
         for name in ("search_growth", "smooth_min_alpha", "constraint_tolerance",
-                     "placement_noise", "exploration_stall_spacing", "exploration_moved"):
+                     "placement_noise", "exploration_stall_spacing"):
             if not getattr(self, name) >= 0:
                 raise ValueError(f"LearningSettings.{name} must be >= 0, got "
                                  f"{getattr(self, name)!r}")

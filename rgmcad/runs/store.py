@@ -72,7 +72,7 @@ FORMAT = 1
 # value that gives the code before them (every new one: older run directories stay resumable)
 _NOT_IDENTITY = ("n_jobs",)
 _ADDED_LATER = {"unmodelled_at": "start", "second_look": False, "exploration_stall_spacing": 0.0,
-                "second_look_rounds": 1, "close_in_copies": 0, "exploration_moved": 0.0}
+                "second_look_rounds": 1, "close_in_copies": 0, "exploration_move_share": 1.0}
 
 
 def run_identity(scenario_name: str, scenario_sha256: str, seed: int, settings,
