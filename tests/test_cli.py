@@ -7,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from _support import run
+from _support import cli_output, run
 
 from rgmcad.cli import main
 from rgmcad.scene.loader import load_scenario
@@ -222,6 +222,41 @@ def test_simulate_json_says_where_every_body_ended(capsys):
     plain = run(scenario, "solved")
     assert [[e.name, e.state.value, e.time] for e in plain.events] == [
         [e["name"], e["state"], e["time"]] for e in out["events"]]
+
+
+def test_simulate_until_shows_where_bodies_are_part_way(capsys):
+    # A user checks that the see-saw was still level before the ball struck it, by stopping
+    # the run part way; the scenario's negate = "always" leaf (timeout 1 s) refuses a copy of
+    # the file with a shorter duration, --until does not.
+    held_out = "tools/generality/split_seesaw.toml"
+    assert main(["simulate", held_out, "--layout", "hand", "--json"]) == 0
+    whole = json.loads(capsys.readouterr().out)
+    times = {e["name"]: e["time"] for e in whole["events"]}
+    until = round(times["ball_hits_seesaw"] - 0.1, 3)
+    assert main(["simulate", held_out, "--layout", "hand", "--until", str(until), "--json"]) == 1
+    part = json.loads(capsys.readouterr().out)
+    assert part["sim_time"] == pytest.approx(until, abs=0.002)
+    # the events up to then are the whole run's; the later ones did not happen
+    for early, late in zip(part["events"], whole["events"], strict=True):
+        if late["time"] is not None and late["time"] <= until:
+            assert early == late
+        else:
+            assert early["state"] != "success"
+    # the see-saw still at its start, the ball above it; at the end, tipped the other way
+    # and the ball low in the box
+    assert main(["simulate", held_out, "--layout", "hand", "--until", "0.002", "--json"]) == 1
+    seesaw_start = json.loads(capsys.readouterr().out)["final_poses"]["seesaw"]["roll"]
+    assert abs(seesaw_start) > 10  # it starts tilted, its -X end raised
+    assert part["final_poses"]["seesaw"]["roll"] == pytest.approx(seesaw_start, abs=0.5)
+    assert part["final_poses"]["seesaw"]["roll"] * whole["final_poses"]["seesaw"]["roll"] < 0
+    assert part["final_poses"]["ball"]["z"] > whole["final_poses"]["ball"]["z"] + 0.05
+    # at the scenario's own duration it is the plain run
+    assert main(["simulate", held_out, "--layout", "hand", "--until", "4", "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["events"] == whole["events"]
+    for bad in ("0", "-1", "4.5"):
+        code, out, err = cli_output(["simulate", held_out, "--until", bad])
+        assert code == 2 and not out and err.count("\n") == 1
+        assert "--until" in err and "(0, 4]" in err
 
 
 def test_simulate_json_of_an_invalid_layout_has_no_poses(capsys):

@@ -17,7 +17,7 @@ def run(args) -> int:
     from rgmcad.sim.validity import check_validity
 
     scenario = load_scenario_arg(args)
-    say(f"{scenario.name}: {scenario.description}")
+    say(f"{scenario.name}: {scenario.description}" if scenario.description else scenario.name)
     bodies = scenario.body_objects()
     n_runs = len(scenario.runs)
     say(f"\nobjects ({len(bodies)} parts, {n_runs} domino run{'' if n_runs == 1 else 's'}):")

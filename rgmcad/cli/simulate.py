@@ -4,6 +4,7 @@ Exit status 0 when the layout succeeds, 1 when it fails or is invalid (2: bad in
 from __future__ import annotations
 
 import json
+from dataclasses import replace
 from pathlib import Path
 
 from rgmcad.cli.common import (
@@ -40,6 +41,8 @@ def configure(p) -> None:
     p.add_argument("--speed", type=finite, default=0.25, help="video playback speed against "
                    "real time, 0.01 to 4 (default 0.25: a domino falls in a tenth of a second)")
     p.add_argument("--labels", action="store_true", help="write the parts' names in the video")
+    p.add_argument("--until", type=finite, metavar="SECONDS", help="stop the run this many "
+                   "seconds in, whatever is still moving (--json's final_poses: the bodies then)")
     add_physics_draw_args(p)
 
 
@@ -58,6 +61,8 @@ def run(args) -> int:
         output_file(args.html, "--html", (".html", ".htm"))
     physics = physics_draw_arg(args)
     scenario = load_scenario_arg(args)
+    if args.until is not None:
+        scenario = _stopped_at(scenario, args.until)
     if args.video:
         frames = video_frames(scenario.settings, VIDEO_FPS, args.speed)
         need = frames * args.width * args.height * 3
@@ -106,9 +111,20 @@ def run(args) -> int:
                 for e in sorted(result.events, key=lambda e: (e.time is None, e.time or 0))]
         print_table(rows, ("event", "state", "time (s)"))
     say(f"outcome: {result.outcome.value} ({result.n_success}/{len(result.events)} events, "
-        f"{result.sim_time:.3f} s simulated in {result.wall_time:.2f} s)")
+        f"{result.sim_time:.3f} s simulated in {result.wall_time:.2f} s)"
+        + ("" if args.until is None else f"; stopped at --until {args.until:g} s"))
     if args.video:
         say(f"video: {args.video}")
     if args.html:
         say(f"replay: {args.html}")
     return 0 if result.outcome is Outcome.SUCCESS else 1
+
+
+def _stopped_at(scenario, seconds: float):
+    """``scenario`` with its run cut ``seconds`` in (events still awake then fail)."""
+    from rgmcad.errors import UsageError
+
+    if not 0 < seconds <= scenario.settings.duration:
+        raise UsageError("--until", f"{seconds:g}", "expected a time in (0, "
+                         f"{scenario.settings.duration:g}] s, the scenario's [simulation] duration")
+    return replace(scenario, settings=replace(scenario.settings, duration=seconds))
