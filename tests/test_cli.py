@@ -259,6 +259,36 @@ def test_simulate_until_shows_where_bodies_are_part_way(capsys):
         assert "--until" in err and "(0, 4]" in err
 
 
+def test_value_sweeps_one_parameter_as_a_layout_file_would(tmp_path, capsys):
+    # A user sweeping box.x by hand: each --value run is the run of a layout file holding
+    # the hand layout with that one value changed (what they had to write before).
+    held_out = "tools/generality/split_seesaw.toml"
+    assert main(["simulate", held_out, "--layout", "hand", "--json"]) == 0
+    hand = json.loads(capsys.readouterr().out)["values"]
+    outcomes = set()
+    for x in (-0.25, -0.15, hand["box.x"]):
+        code = main(["simulate", held_out, "--layout", "hand", "--value", f"box.x={x}", "--json"])
+        swept = json.loads(capsys.readouterr().out)
+        file = tmp_path / f"box{x}.json"
+        file.write_text(json.dumps({"values": {**hand, "box.x": x}}))
+        assert main(["simulate", held_out, "--layout", str(file), "--json"]) == code
+        written = json.loads(capsys.readouterr().out)
+        assert swept["values"] == written["values"] == {**hand, "box.x": x}
+        assert swept["events"] == written["events"]
+        assert swept["layout"] == f"hand, box.x={x}"
+        outcomes.add(swept["outcome"])
+    assert outcomes == {"success", "failure"}  # the sweep crossed the edge of what works
+    # the same flag poses an exported layout
+    out = tmp_path / "moved.glb"
+    code, text, _ = cli_output(["export", held_out, "--layout", "hand", "--value", "box.x=-0.15",
+                                "--out", str(out)])
+    assert code == 0 and "box.x=-0.15" in text and out.stat().st_size > 0
+    for bad, says in (("nope=1", "a free parameter"), ("box.x", "a free parameter"),
+                      ("box.x=abc", "a number"), ("box.x=nan", "finite")):
+        code, text, err = cli_output(["simulate", held_out, "--value", bad])
+        assert code == 2 and not text and err.count("\n") == 1 and says in err, err
+
+
 def test_simulate_json_of_an_invalid_layout_has_no_poses(capsys):
     assert main(["simulate", "scenarios/simple.toml", "--vector", "0,0,0.5", "--json"]) == 1
     out = json.loads(capsys.readouterr().out)

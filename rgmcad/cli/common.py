@@ -5,6 +5,10 @@ from __future__ import annotations
 import argparse
 import sys
 from pathlib import Path
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    import numpy as np
 
 
 def say(text: str = "") -> None:
@@ -23,6 +27,43 @@ def add_layout_args(p: argparse.ArgumentParser, vector: bool = True) -> None:
                        "layout file (JSON/TOML with `values` or `vector`)")
     if vector:
         group.add_argument("--vector", help="a design vector v1,...,vd in [0, 1]")
+    p.add_argument("--value", action="append", default=[], metavar="NAME=V",
+                   help="set one free parameter of that layout (repeatable), in the file's units "
+                   "(metres, degrees), e.g. track.x=0.12: to sweep a parameter by hand")
+
+
+def layout_arg(scenario, args) -> tuple[str, np.ndarray]:
+    """(name, real values (d,)) of ``--layout``/``--vector`` with ``--value`` changes; the
+    name lists the changes (``hand, track.x=0.12``)."""
+    from rgmcad.scene.layout_files import resolve_layout
+
+    name, values = resolve_layout(scenario, args.layout, getattr(args, "vector", None))
+    return with_values(scenario, name, values, args.value)
+
+
+def with_values(scenario, name: str, values, pairs) -> tuple[str, np.ndarray]:
+    """``values`` with the ``--value NAME=V`` ``pairs`` applied, and the layout's name."""
+    import numpy as np
+
+    from rgmcad.errors import UsageError
+
+    index = {f.name: i for i, f in enumerate(scenario.free)}
+    values, given = np.array(values, float), set()
+    for pair in pairs:
+        key, sep, text = (t.strip() for t in pair.partition("="))
+        if not sep or key not in index:
+            raise UsageError("--value", pair, "expected NAME=V with NAME a free parameter: "
+                             + ", ".join(index))
+        if key in given:
+            raise UsageError("--value", key, "given twice")
+        try:
+            values[index[key]] = float(text)
+        except ValueError:
+            raise UsageError("--value", pair, f"expected a number, got {text!r}") from None
+        if not np.isfinite(values[index[key]]):
+            raise UsageError("--value", pair, f"expected a finite number, got {text!r}")
+        given.add(key)
+    return ", ".join([name, *pairs]) if pairs else name, values
 
 
 def add_scheduler_args(p: argparse.ArgumentParser) -> None:

@@ -4,7 +4,14 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from rgmcad.cli.common import add_layout_args, add_scenario_arg, load_parts_of, load_scenario_arg, say
+from rgmcad.cli.common import (
+    add_layout_args,
+    add_scenario_arg,
+    load_parts_of,
+    load_scenario_arg,
+    say,
+    with_values,
+)
 from rgmcad.cli.paths import output_file
 
 RUN_FILES = ("layout.step", "layout.glb")
@@ -19,15 +26,16 @@ def configure(p) -> None:
                    "FILE.glb (glTF binary, metres)")
 
 
-def export_files(args, layout: str | None, vector: str | None, outs: list[Path]):
-    """Pose ``--layout``/``--vector`` and write it to each of ``outs``; (layout name, number
-    of parts)."""
+def export_files(args, layout: str | None, vector: str | None, outs: list[Path],
+                 pairs=()):
+    """Pose ``--layout``/``--vector`` (with the ``--value`` ``pairs``) and write it to each of
+    ``outs``; (layout name, number of parts)."""
     from rgmcad.export import export_layout
     from rgmcad.scene.bodies import make_scene
     from rgmcad.scene.layout_files import resolve_layout
 
     scenario = load_scenario_arg(args)
-    name, values = resolve_layout(scenario, layout, vector)
+    name, values = with_values(scenario, *resolve_layout(scenario, layout, vector), pairs)
     scene = make_scene(scenario, values, load_parts_of(scenario, args))
     for out in outs:
         export_layout(scenario, scene, out)
@@ -38,6 +46,6 @@ def run(args) -> int:
     from rgmcad.export import EXPORT_SUFFIXES
 
     out = output_file(args.out, "--out", EXPORT_SUFFIXES)
-    name, n = export_files(args, args.layout, args.vector, [out])
+    name, n = export_files(args, args.layout, args.vector, [out], args.value)
     say(f"{args.out}: {args.scenario_given}, layout {name}, {n} parts")
     return 0

@@ -2,7 +2,14 @@
 
 from __future__ import annotations
 
-from rgmcad.cli.common import add_layout_args, add_scenario_arg, load_parts_of, load_scenario_arg, say
+from rgmcad.cli.common import (
+    add_layout_args,
+    add_scenario_arg,
+    layout_arg,
+    load_parts_of,
+    load_scenario_arg,
+    say,
+)
 from rgmcad.cli.paths import output_file, pixels
 
 MAX_PIXELS = 8192
@@ -25,12 +32,11 @@ def configure(p) -> None:
 
 def run(args) -> int:
     from rgmcad.scene.bodies import make_scene
-    from rgmcad.scene.layout_files import resolve_layout
     from rgmcad.sim.render import render_png
 
     out = output_file(args.out, "--out", (".png",))
     scenario = load_scenario_arg(args)
-    name, values = resolve_layout(scenario, args.layout, args.vector)
+    name, values = layout_arg(scenario, args)
     scene = make_scene(scenario, values, load_parts_of(scenario, args))
     render_png(scenario, scene, out, args.width, args.height, show_labels=args.labels,
                show_scale=args.scale_bar)

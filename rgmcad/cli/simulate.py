@@ -10,6 +10,7 @@ from pathlib import Path
 from rgmcad.cli.common import (
     add_layout_args,
     add_scenario_arg,
+    layout_arg,
     load_parts_of,
     load_scenario_arg,
     print_table,
@@ -49,7 +50,6 @@ def configure(p) -> None:
 def run(args) -> int:
     from rgmcad.errors import UsageError
     from rgmcad.scene.design_space import vector_from_values
-    from rgmcad.scene.layout_files import resolve_layout
     from rgmcad.sim.render import record_video, video_frames
     from rgmcad.sim.run import Outcome, final_poses, simulate
 
@@ -70,7 +70,7 @@ def run(args) -> int:
             raise UsageError("--width/--height", "", f"{args.width} x {args.height} pixels for "
                              f"up to {frames} frames need {need / 2**30:.1f} GiB of memory, at "
                              f"most {MAX_VIDEO_BYTES >> 30} GiB allowed: expected a smaller video")
-    name, values = resolve_layout(scenario, args.layout, args.vector)
+    name, values = layout_arg(scenario, args)
     parts = load_parts_of(scenario, args)
     if args.video:
         result = record_video(scenario, values, parts, Path(args.video), VIDEO_FPS,

@@ -15,6 +15,7 @@ from pathlib import Path
 from rgmcad.cli.common import (
     add_layout_args,
     add_scenario_arg,
+    layout_arg,
     load_parts_of,
     load_scenario_arg,
     say,
@@ -51,14 +52,14 @@ def configure(p) -> None:
 def run(args) -> int:
     from rgmcad.printing.template import scene_template
     from rgmcad.scene.bodies import make_scene
-    from rgmcad.scene.layout_files import read_tolerances, resolve_layout
+    from rgmcad.scene.layout_files import read_tolerances
 
     t0 = time.perf_counter()
     output_dir(args.out, "--out", files=("template.pdf", "template.svg"))
     scenario = load_scenario_arg(args)
-    name, values = resolve_layout(scenario, args.layout, None)
+    name, values = layout_arg(scenario, args)
     tolerances = {}
-    if args.layout and args.layout not in scenario.layouts:  # a layout file
+    if args.layout and args.layout not in scenario.layouts and not args.value:  # as optimised
         tolerances = read_tolerances(scenario, Path(args.layout))
     scene = make_scene(scenario, values, load_parts_of(scenario, args))
     paper = None if args.paper == "auto" else args.paper
