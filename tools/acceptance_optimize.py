@@ -12,6 +12,7 @@ settings.
         [--workers 2 | --scheduler ADDRESS|local:N] [--budget default] [--out acceptance]
         [--physics RANGES]   # the evaluations' second figure, as `rgmcad evaluate --physics`
         [--eval-seed 0] [--layouts layout start]  # the evaluations' seed; which run layouts
+        [--set KEY=VALUE ...]     # learning settings of the runs, as `rgmcad optimize --set`
 
 A scenario is a shipped name (scenarios/NAME.toml) or a path to a scenario file.
 
@@ -96,6 +97,9 @@ def main() -> None:
                         default=["layout", "start"],
                         help="which of each run's layouts to evaluate: the optimised one "
                              "(layout) and the best exploration sample (start)")
+    parser.add_argument("--set", action="append", default=[], dest="changes",
+                        metavar="KEY=VALUE", help="passed to `rgmcad optimize --set` (use a "
+                        "fresh --out: runs in OUT are reused whatever their settings)")
     args = parser.parse_args()
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
@@ -115,7 +119,8 @@ def main() -> None:
         for seed in args.seeds:
             run = out / f"{name}-s{seed}"
             summary = cached(out / f"{name}-s{seed}.json", "optimize", scenario, "--run",
-                             str(run), "--seed", str(seed), "--budget", args.budget, *common)
+                             str(run), "--seed", str(seed), "--budget", args.budget, *common,
+                             *(a for pair in args.changes for a in ("--set", pair)))
             evaluations = {lay: cached(out / f"eval-{name}-s{seed}-{lay}.json", "evaluate",
                                        scenario, "--layout", str(run / f"{lay}.json"),
                                        *evaluate) for lay in args.layouts}
