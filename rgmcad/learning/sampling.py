@@ -281,6 +281,8 @@ def explore(
        level they reached instead of circling the oldest samples there for good
        (docs/decisions.md, "Exploration stalls"). With ``exploration_stall_spacing`` > 0
        the parents taken then keep about a step apart (:func:`exploration_parents`).
+    5. With ``exploration_move_share`` = p < 1 (off), each coordinate of a draw moves with
+       probability p, one at least; the rest keep the parent's values (``_few_moved``).
 
     When no selected sample has any successful event (the paper's weights would be 0/0),
     the iteration continues the Sobol sequence instead: with no partial success to grow
