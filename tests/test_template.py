@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 import re
+import weakref
 import xml.etree.ElementTree as ET
 
 import cv2
@@ -187,17 +188,18 @@ def expected_ids(label):
     return {4 * slot + c for c in range(4)}
 
 
-# Caches keyed by id() hold the keyed object too: a freed page's id can be handed to a new
-# one, which would otherwise read the old page's marks.
-_DETECTED: dict[tuple, tuple] = {}
-_STITCHED: dict[tuple, tuple] = {}
+# Caches keyed by id(): an entry goes when its object does, since a freed page's id can be
+# handed to a new page, which would otherwise read the old page's marks.
+_DETECTED: dict[tuple, object] = {}
+_STITCHED: dict[tuple, object] = {}
 
 
 def _cached(cache, obj, extra, make):
     key = (id(obj), extra)
     if key not in cache:
-        cache[key] = (obj, make())
-    return cache[key][1]
+        cache[key] = make()
+        weakref.finalize(obj, cache.pop, key, None)
+    return cache[key]
 
 
 def detect_page(pages, index):
