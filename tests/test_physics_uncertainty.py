@@ -10,11 +10,12 @@ import numpy as np
 import pytest
 
 from rgmcad.errors import UsageError
-from rgmcad.runs.problem import ScenarioContext
+from rgmcad.runs.problem import ScenarioContext, SimRecord, worst_of
 from rgmcad.runs.robustness import local_robustness
 from rgmcad.scene.bodies import make_scene
 from rgmcad.scene.design_space import values_from_mapping, vector_from_values
-from rgmcad.scene.perturbation import DEFAULT_PHYSICS, PhysicsDraw, PhysicsRanges
+from rgmcad.scene.perturbation import DEFAULT_PHYSICS, PhysicsDraw, PhysicsRanges, corner_worlds
+from rgmcad.sim.run import Outcome
 from rgmcad.sim.world import World
 from tests._support import cli_output
 
@@ -64,7 +65,7 @@ def test_zero_width_ranges_give_exactly_todays_outcomes(ramp):
 
 _OUTCOMES = """
 import json, sys
-from rgmcad.runs.problem import ScenarioContext
+from rgmcad.runs.problem import ScenarioContext, SimRecord, worst_of
 from rgmcad.scene.perturbation import DEFAULT_PHYSICS, PhysicsDraw
 context = ScenarioContext.load(sys.argv[1])
 x = [float(v) for v in sys.argv[2].split(",")]
@@ -187,3 +188,64 @@ def test_learning_with_physical_noise_labels_edge_layouts_as_a_real_table_would(
     assert flipped and len(flipped) < len(rows) / 2  # noisy near the edge, not everywhere
     code, _, err = cli_output(argv)  # the same directory without noise: another run
     assert code == 2 and len(err.strip().splitlines()) == 1
+
+
+def test_learning_at_the_corners_labels_a_layout_by_the_grippiest_table(tmp_path):
+    # +-20 % friction on both bodies: the contact's friction runs from 0.32 to 0.72, so the
+    # block slides at both ends only above atan(0.72) = 35.8 degrees (26.6 as designed).
+    run = tmp_path / "corners"
+    argv = ["optimize", RAMP, "--budget", "small", "--robustness", "0", "--workers", "1",
+            "--run", str(run)]
+    code, out, _ = cli_output([*argv, "--physics-corners", "--json"])
+    assert code == 0 and "physics_corners" in json.loads((run / "settings.json").read_text())
+    rows = [json.loads(line) for line in (run / "simulations.jsonl").read_text().splitlines()]
+    slope = {abs(-50 + 30 * r["vector"][0]): r["outcome"] for r in rows if r["valid"]}
+    assert all(v == "success" for s, v in slope.items() if s > 37.0)
+    assert all(v == "failure" for s, v in slope.items() if s < 34.5)
+    assert any(26.6 < s < 34.5 for s in slope)  # where the designed table would succeed
+    assert abs(json.loads(out)["values"]["board.roll"]) > 35.8
+    code, _, err = cli_output(argv)  # the same directory with plain labels: another run
+    assert code == 2 and len(err.strip().splitlines()) == 1
+
+
+@pytest.mark.parametrize("extra", [["--physics", "off"], ["--physics-noise"],
+                                   ["--physics", "friction=0,mass=0,restitution=0,position=0.002"]])
+def test_corners_without_physical_ranges_are_refused_in_one_line(tmp_path, extra):
+    code, out, err = cli_output(["optimize", RAMP, "--budget", "small", "--run",
+                                str(tmp_path / "run"), "--physics-corners", *extra])
+    assert code == 2 and not out and len(err.strip().splitlines()) == 1
+    assert "--physics-corners" in err and not (tmp_path / "run").exists()
+
+
+def test_a_corner_moves_every_body_to_the_same_end_of_every_range(ramp):
+    sc = ramp.scenario
+    scene = make_scene(sc, values_from_mapping(sc, sc.layouts["edge"]), ramp.parts)
+    ranges = PhysicsRanges(friction=0.2, mass=0.1, restitution=0.3, position=0.01)
+    low, high = corner_worlds(ranges)
+    for corner, sign in ((low, -1), (high, 1)):
+        assert not corner.ranges.moves_parts  # parts stay where designed
+        for name, body in corner.apply(scene).bodies.items():
+            before = scene.bodies[name].physical
+            assert body.physical.friction == pytest.approx(before.friction * (1 + sign * 0.2))
+            assert body.physical.restitution == pytest.approx(
+                min(before.restitution * (1 + sign * 0.3), 1.0))
+            for key in ("mass", "density"):
+                if getattr(before, key) is not None:
+                    assert getattr(body.physical, key) == pytest.approx(
+                        getattr(before, key) * (1 + sign * 0.1))
+
+
+def test_the_worst_of_several_worlds_fails_where_any_of_them_fails():
+    def record(outcome, **events):
+        return SimRecord(True, Outcome(outcome), events, 1.0)
+
+    a = record("success", start=(True, 0.1), hit=(True, 0.5), stop=(True, 0.9))
+    b = record("failure", start=(True, 0.2), hit=(False, 0.4), stop=(None, None))
+    c = record("failure", start=(True, 0.1), hit=(None, None), stop=(None, None))
+    assert worst_of([a, a]) == SimRecord(True, Outcome.SUCCESS, a.events, 2.0)
+    both = worst_of([a, b])
+    assert both.outcome is Outcome.FAILURE and both.seconds == 2.0
+    assert both.events == {"start": (True, 0.2), "hit": (False, 0.4), "stop": (None, None)}
+    assert worst_of([a, c]).events["hit"] == (None, None)
+    invalid = SimRecord(False, Outcome.INVALID, {}, 0.5)
+    assert worst_of([invalid]).outcome is Outcome.INVALID

@@ -60,6 +60,10 @@ def add_robustness_arg(p: argparse.ArgumentParser) -> None:
     p.add_argument("--physics-noise", action="store_true", help="learn with noisy labels: "
                    "every learning simulation with its own draw of the --physics errors "
                    "(default: the scenario's physics; directory runs/SCENARIO-sSEED-physics)")
+    p.add_argument("--physics-corners", action="store_true", help="learn where the chain "
+                   "runs at both ends of the --physics errors: every learning simulation twice, "
+                   "every body at the low and at the high end of each range, a success only "
+                   "where both succeed (directory runs/SCENARIO-sSEED-corners)")
 
 
 def physics_arg(args):
@@ -79,14 +83,22 @@ def robustness_arg(args) -> int:
 
 
 def robustness_options(args) -> dict:
-    """``optimize_scenario``'s ``robustness_samples``, ``physics`` and ``physics_noise``."""
+    """``optimize_scenario``'s ``robustness_samples``, ``physics``, ``physics_noise`` and
+    ``physics_corners``."""
+    from rgmcad.errors import UsageError
+
     ranges = physics_arg(args)
     if args.physics_noise and ranges is None:
-        from rgmcad.errors import UsageError
-
         raise UsageError("--physics-noise", "", "needs physical errors; --physics is 'off'")
+    if args.physics_corners and (ranges is None or not ranges.changes_physics):
+        raise UsageError("--physics-corners", "", "needs friction, mass or restitution "
+                         f"errors; --physics is {args.physics!r}")
+    if args.physics_noise and args.physics_corners:
+        raise UsageError("--physics-corners", "", "learns with exact labels at the ends of "
+                         "the ranges; --physics-noise with noisy ones: expected one of them")
     return {"robustness_samples": robustness_arg(args), "physics": ranges,
-            "physics_noise": ranges if args.physics_noise else None}
+            "physics_noise": ranges if args.physics_noise else None,
+            "physics_corners": ranges if args.physics_corners else None}
 
 
 def estimate_simulations(summary: dict) -> int:

@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import hashlib
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -29,7 +29,7 @@ from rgmcad.parts.store import DEFAULT_BUILD_DIR
 from rgmcad.sim.run import Outcome
 
 __all__ = ["SimRecord", "ScenarioContext", "ScenarioProblem", "ContextPayload", "simulate_task",
-           "simulate_layout_task", "validity_task",
+           "simulate_layout_task", "worst_of", "validity_task",
            "scenario_digest", "event_parents", "any_joins"]
 
 
@@ -259,11 +259,41 @@ def simulate_task(context: ScenarioContext, x: np.ndarray) -> SimRecord:
 def simulate_layout_task(context: ScenarioContext, item: tuple) -> SimRecord:
     """``context.simulate_one(x, known_valid)`` for ``item = (x, known_valid)``: a layout that
     this run already found valid is not tested again; ``item = (x, known_valid, physics)``
-    simulates it with that physical draw."""
+    simulates it with that physical draw, or, for a tuple of draws, in each of them in turn
+    (stopping at an invalid layout), labelled by :func:`worst_of`."""
     x, known_valid, *physics = item
+    if physics and isinstance(physics[0], tuple):
+        records = []
+        for world in physics[0]:
+            records.append(context.simulate_one(x, known_valid=known_valid, physics=world))
+            if not records[-1].valid:
+                break
+            known_valid = True
+        return worst_of(records)
     if physics and physics[0] is not None:
         return context.simulate_one(x, known_valid=known_valid, physics=physics[0])
     return context.simulate_one(x, known_valid=True) if known_valid else context.simulate_one(x)
+
+
+def worst_of(records: Sequence[SimRecord]) -> SimRecord:
+    """One record for a layout simulated in several worlds: a success only where every world
+    succeeded; an event failed where any world failed it (at the earliest such time),
+    succeeded where every world did (at the latest), otherwise unresolved; seconds added."""
+    if not records[-1].valid:
+        return replace(records[-1], seconds=sum(r.seconds for r in records))
+    outcome = Outcome.SUCCESS if all(r.outcome is Outcome.SUCCESS for r in records) \
+        else Outcome.FAILURE
+    events = {}
+    for name in records[0].events:
+        pairs = [r.events[name] for r in records]
+        failed = [t for lab, t in pairs if lab is False]
+        if failed:
+            events[name] = (False, min((t for t in failed if t is not None), default=None))
+        elif all(lab is True for lab, _ in pairs):
+            events[name] = (True, max((t for _, t in pairs if t is not None), default=None))
+        else:
+            events[name] = (None, None)
+    return SimRecord(True, outcome, events, sum(r.seconds for r in records))
 
 
 def validity_task(context: ScenarioContext, X: np.ndarray) -> np.ndarray:

@@ -404,7 +404,7 @@ class RecordedProblem:
             if r is None:
                 todo.setdefault(_key(X[i]), i)
         rows = list(todo.values())
-        results = self.executor.map_context(  # the physical draw: None without noise
+        results = self.executor.map_context(
             simulate_layout_task, [(X[i], _key(X[i]) in self._valid, self._draw(X[i]))
                                    for i in rows])
         self._in_flight += 1
@@ -433,11 +433,13 @@ class RecordedProblem:
         return wait
 
     physics_noise = None  # (PhysicsRanges, seed): each new layout with its own physical draw
+    physics_worlds = None  # a tuple of physical worlds: each new layout labelled by its worst
 
-    def _draw(self, x):
+    def _draw(self, x):  # the physics of a new layout's simulation (None: the scenario's)
+        if self.physics_noise is None:
+            return self.physics_worlds  # None, or a tuple of worlds
         from rgmcad.scene.perturbation import layout_draw
-
-        return None if self.physics_noise is None else layout_draw(*self.physics_noise, x)
+        return layout_draw(*self.physics_noise, x)
 
     def submit(self, X: np.ndarray) -> Callable[[], list]:
         """:meth:`submit_records` giving labels."""

@@ -46,7 +46,7 @@ from rgmcad.runs.report import (
 )
 from rgmcad.runs.starts import check_starts_valid, choose_layout, resolve_starts, starts_tag
 from rgmcad.runs.store import MODEL, SETTINGS, SIMULATIONS, RecordedProblem, RunStore, run_identity
-from rgmcad.scene.perturbation import DEFAULT_PHYSICS, PhysicsRanges
+from rgmcad.scene.perturbation import DEFAULT_PHYSICS, PhysicsRanges, corner_worlds
 from rgmcad.sim.run import Outcome
 
 __all__ = ["LAYOUT_FILE", "START_FILE", "RunProgress", "OptimizationRun", "default_run_dir",
@@ -115,7 +115,8 @@ def optimize_scenario(
     parts_dir: str | Path | None = None, scheduler: str | None = None,
     batch: int | None = None, robustness_samples: int = 0,
     physics: PhysicsRanges | None = DEFAULT_PHYSICS, physics_noise: PhysicsRanges | None = None,
-    full: bool = False, starts: Sequence[str] = (), centering: str | None = None,
+    physics_corners: PhysicsRanges | None = None, full: bool = False,
+    starts: Sequence[str] = (), centering: str | None = None,
     changes: Mapping | None = None,
 ) -> OptimizationRun:
     """Optimise a scenario's layout in a run directory, or continue an interrupted run there.
@@ -149,6 +150,11 @@ def optimize_scenario(
     physics_noise : every learning (and verification) simulation with its own physical
         draw of these ranges (noisy labels: the model learns the success probability under
         physical errors); part of the run's identity, ``-physics`` ends the default directory.
+    physics_corners : every learning (and verification) simulation run twice, with every
+        body at the low and at the high end of these ranges, and labelled a success (each
+        event too) only where both succeed: the model learns where the chain runs on the
+        slipperiest and the grippiest table. Twice the simulations; part of the run's
+        identity, ``-corners`` ends the default directory.
     full : one success model for the whole graph (``factorized=False``; paper Fig. 16).
     centering : ``LearningSettings.centering`` instead of the settings' (``"auto"``,
         ``"always"`` or ``"off"``); part of the run's identity and default directory.
@@ -183,7 +189,10 @@ def optimize_scenario(
         identity["starts"] = [[float(u) for u in x] for x in start_vectors.values()]
     if physics_noise is not None:  # noisy labels: another run
         identity["physics_noise"] = physics_noise.to_json()
-    tag = "" if physics_noise is None else "-physics"
+    if physics_corners is not None:
+        identity["physics_corners"] = physics_corners.to_json()
+    tag = ("" if physics_noise is None else "-physics") + (
+        "" if physics_corners is None else "-corners")
     run_dir = Path(run_dir) if run_dir else default_run_dir(
         scenario.name, budget, seed, batch, full, list(start_vectors), centering, changes)
     run_dir = run_dir.with_name(run_dir.name + tag) if tag and not given else run_dir
@@ -205,6 +214,8 @@ def optimize_scenario(
             learner_problem = recorded(problem, store, executor, progress.simulated)
             if physics_noise is not None:
                 learner_problem.physics_noise = (physics_noise, seed)
+            if physics_corners is not None:
+                learner_problem.physics_worlds = corner_worlds(physics_corners)
             # The pool is idle while the models train: their grid searches, calibration folds
             # and mutual information estimates run there (never changing the result).
             with jobs_on(executor):

@@ -47,8 +47,9 @@ from rgmcad.errors import UsageError
 from rgmcad.scene.bodies import Scene, SceneBody
 from rgmcad.scene.model import FRAME, Scenario
 
-__all__ = ["PhysicsRanges", "PhysicsDraw", "DEFAULT_PHYSICS", "PLACEMENT_SCALES",
-           "parse_physics_ranges", "layout_draw", "hand_placed_objects"]
+__all__ = ["PhysicsRanges", "PhysicsDraw", "PhysicsCorner", "DEFAULT_PHYSICS",
+           "PLACEMENT_SCALES", "parse_physics_ranges", "corner_worlds", "layout_draw",
+           "hand_placed_objects"]
 
 _STEP = 1e-3
 _PHYSICS_STREAM = 0x5048_5953  # keeps physics draws apart from any placement stream
@@ -177,12 +178,7 @@ class PhysicsDraw:
     def apply(self, scene: Scene) -> Scene:
         """The scene with every body's physical properties perturbed (the scene itself when
         every range is zero)."""
-        if not self.ranges.changes_physics:
-            return scene
-        first = {name: group[0] for group in scene.welds for name in group}
-        bodies = {name: _perturbed(body, self.factors(first.get(name, name)))
-                  for name, body in scene.bodies.items()}
-        return dataclasses.replace(scene, bodies=bodies)
+        return _applied(self, scene)
 
 
     def offsets(self, movable: Iterable[str], attempts: Mapping[str, int] | None = None
@@ -204,6 +200,43 @@ class PhysicsDraw:
                 (r.position, r.position, r.heading))
             out[name] = np.array([dx, dy, 0.0, dh, 0.0, 0.0])
         return out
+
+
+@dataclass(frozen=True)
+class PhysicsCorner:
+    """One end of every range for every body: ``high`` gives each factor ``1 + r``, else
+    ``1 - r``. Pybullet combines two bodies' friction by their product, so every contact's
+    friction is then at its own end too (0.64 or 1.44 of the scenario's at +-20 %): the
+    slipperiest table a draw can give, or the grippiest. Parts are where designed."""
+
+    ranges: PhysicsRanges
+    high: bool
+
+    def __post_init__(self):  # run.simulate reads ranges.moves_parts
+        object.__setattr__(self, "ranges", dataclasses.replace(
+            self.ranges, position=0.0, heading=0.0))
+
+    def factors(self, body: str) -> tuple[float, float, float]:
+        r, sign = self.ranges, (1.0 if self.high else -1.0)
+        return tuple(round((1.0 + sign * v) / _STEP) * _STEP
+                     for v in (r.friction, r.mass, r.restitution))
+
+    def apply(self, scene: Scene) -> Scene:
+        return _applied(self, scene)
+
+
+def corner_worlds(ranges: PhysicsRanges) -> tuple[PhysicsCorner, PhysicsCorner]:
+    """The low and the high corner of ``ranges``."""
+    return PhysicsCorner(ranges, False), PhysicsCorner(ranges, True)
+
+
+def _applied(draw, scene: Scene) -> Scene:
+    if not draw.ranges.changes_physics:
+        return scene
+    first = {name: group[0] for group in scene.welds for name in group}
+    bodies = {name: _perturbed(body, draw.factors(first.get(name, name)))
+              for name, body in scene.bodies.items()}
+    return dataclasses.replace(scene, bodies=bodies)
 
 
 def hand_placed_objects(scenario: Scenario, infinite: Iterable[str] = ()) -> list[str]:
