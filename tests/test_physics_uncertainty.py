@@ -204,6 +204,10 @@ def test_learning_at_the_corners_labels_a_layout_by_the_grippiest_table(tmp_path
     assert all(v == "failure" for s, v in slope.items() if s < 34.5)
     assert any(26.6 < s < 34.5 for s in slope)  # where the designed table would succeed
     assert abs(json.loads(out)["values"]["board.roll"]) > 35.8
+    code, out, _ = cli_output([*argv, "--physics-corners"])  # finished: read back, as read
+    n = len(rows)
+    assert code == 0 and f"{n} layouts simulated in 2 physical worlds each, {2 * n} simulations" in out
+    assert "2 physical worlds" in (run / "report.md").read_text()
     code, _, err = cli_output(argv)  # the same directory with plain labels: another run
     assert code == 2 and len(err.strip().splitlines()) == 1
 

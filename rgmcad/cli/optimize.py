@@ -117,10 +117,7 @@ def show(summary: dict, as_json: bool, wall_time: float | None = None) -> None:
         f"); {summary['source']}")
     for line in physics.robustness_lines(summary):
         say(line)
-    estimate = physics.estimate_simulations(summary)
-    extra = f" and {estimate} for the rho_g estimate" if estimate else ""
-    say(f"{summary['simulations']} simulations ({summary['successes']} successes, "
-        f"{summary['replayed']} replayed){extra} in {summary['wall_time']:.0f} s")
+    say(physics.count_line(summary))
     from rgmcad.runs.report import placement_lines
 
     for line in placement_lines(summary):

@@ -77,7 +77,9 @@ def report_markdown(scenario, s: dict, low, high) -> str:
              f"- chosen layout: {s['source']}; verified by simulation: "
              f"{'yes' if s['verified'] else 'NO'}",
              f"- simulations: {s['simulations']} ({s['successes']} successes; by stage: "
-             + ", ".join(f"{k} {v}" for k, v in s["simulations_by_stage"].items()) + ")",
+             + ", ".join(f"{k} {v}" for k, v in s["simulations_by_stage"].items()) + ")"
+             + ("" if s.get("worlds", 1) == 1 else f"; each layout in {s['worlds']} physical "
+                "worlds (`--physics-corners`), a success only where all succeeded"),
              *_exploration_lines(s.get("exploration")),
              f"- wall time: {s['wall_time']:.0f} s (simulation {s['simulation_seconds']:.0f} "
              "s of CPU)",

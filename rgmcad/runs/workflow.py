@@ -350,6 +350,7 @@ def _write_outputs(scenario, store, recorded, result, chosen, wall_time, seed, b
                          "evaluations": result.optimization.n_evaluations,
                          "status": result.optimization.status},
         "simulations": len(stored),
+        **({"worlds": len(recorded.physics_worlds)} if recorded.physics_worlds else {}),
         "evaluations": result.n_total_simulations + chosen["n_simulations"],
         "simulations_by_stage": {**result.n_simulations, **chosen["by_stage"]},
         "exploration": result.exploration_summary(),
