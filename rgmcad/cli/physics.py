@@ -117,7 +117,7 @@ def count_line(summary: dict) -> str:
     counted, both = f"{n} simulations", ""
     if worlds > 1:
         counted = f"{n} layouts simulated in {worlds} physical worlds each, {n * worlds} simulations"
-        both = f" in all {worlds}"
+        both = " in both" if worlds == 2 else f" in all {worlds}"
     return (f"{counted} ({summary['successes']} successes{both}, {summary['replayed']} "
             f"replayed){extra} in {summary['wall_time']:.0f} s")
 
