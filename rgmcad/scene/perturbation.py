@@ -17,6 +17,8 @@ them. The bodies of a weld group move as one rigid body and take the factors of 
 first member. Factors are rounded to steps of 1e-3, far below any measurement of friction or
 mass, which bounds the mass-dependent data a simulation process caches per part.
 Zero-width ranges return the scene itself: the simulation is exactly the unperturbed one.
+A :class:`PhysicsCorner` is no draw but an end of every range for every body at once (the
+worlds of ``optimize --physics-corners``).
 
 Where a hand put each part (``position``, ``heading``; off by default)
 -----------------------------------------------------------------------
