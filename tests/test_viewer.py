@@ -126,6 +126,20 @@ def test_simulate_html_writes_a_self_contained_page(tmp_path, capsys):
     assert out.stat().st_size < 10e6
 
 
+def test_a_replay_stopped_with_until_ends_there(tmp_path, capsys):
+    def replay_end(until):
+        out = tmp_path / f"u{until}.html"
+        argv = ["simulate", SIMPLE, "--layout", "solved", "--html", str(out), "--json"]
+        main([*argv, *([] if until is None else ["--until", str(until)])])
+        events = {e["name"]: e["state"] for e in json.loads(capsys.readouterr().out)["events"]}
+        return float(re.search(r"frames, ([\d.]+) s simulated", out.read_text())[1]), events
+
+    whole, all_events = replay_end(None)
+    stopped, events = replay_end(0.3)
+    assert 0.25 < stopped <= 0.3 < whole
+    assert set(all_events.values()) == {"success"} and set(events.values()) != {"success"}
+
+
 @pytest.mark.parametrize("name", ["out.txt", "missing-folder/out.html"])
 def test_bad_html_path_gives_one_line_and_exit_2(name, tmp_path, capsys):
     assert main(["simulate", SIMPLE, "--html", str(tmp_path / name)]) == 2
