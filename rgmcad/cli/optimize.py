@@ -117,8 +117,9 @@ def show(summary: dict, as_json: bool, wall_time: float | None = None) -> None:
         f"); {summary['source']}")
     for line in physics.robustness_lines(summary):
         say(line)
-    say(physics.count_line(summary))
-    from rgmcad.runs.report import placement_lines
+    from rgmcad.runs.report import count_line, placement_lines
+
+    say(count_line(summary))
 
     for line in placement_lines(summary):
         say(line)

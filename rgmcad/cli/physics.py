@@ -7,8 +7,7 @@ from __future__ import annotations
 import argparse
 
 __all__ = ["add_physics_arg", "add_physics_draw_args", "add_robustness_arg", "physics_arg",
-           "physics_draw_arg", "robustness_arg", "robustness_options", "robustness_lines",
-           "count_line"]
+           "physics_draw_arg", "robustness_arg", "robustness_options", "robustness_lines"]
 
 _HELP = ("physical errors of the second rho_g: 'default' (friction +-20 %%, mass +-10 %%, "
          "restitution +-20 %%), KEY=VALUE,... (e.g. friction=0.3,mass=0.05; unnamed keys keep "
@@ -100,26 +99,6 @@ def robustness_options(args) -> dict:
     return {"robustness_samples": robustness_arg(args), "physics": ranges,
             "physics_noise": ranges if args.physics_noise else None,
             "physics_corners": ranges if args.physics_corners else None}
-
-
-def estimate_simulations(summary: dict) -> int:
-    """Simulations of the run summary's rho_g estimate, both kinds of error (0 when none)."""
-    r = summary.get("robustness") or {}
-    return r.get("simulations", 0) + (r.get("physics") or {}).get("simulations", 0)
-
-
-def count_line(summary: dict) -> str:
-    """What the run simulated, in how long; a run learnt at the corners (``worlds``)
-    simulated each layout once per world."""
-    estimate = estimate_simulations(summary)
-    extra = f" and {estimate} for the rho_g estimate" if estimate else ""
-    n, worlds = summary["simulations"], summary.get("worlds", 1)
-    counted, both = f"{n} simulations", ""
-    if worlds > 1:
-        counted = f"{n} layouts simulated in {worlds} physical worlds each, {n * worlds} simulations"
-        both = " in both" if worlds == 2 else f" in all {worlds}"
-    return (f"{counted} ({summary['successes']} successes{both}, {summary['replayed']} "
-            f"replayed){extra} in {summary['wall_time']:.0f} s")
 
 
 def robustness_lines(summary: dict) -> list[str]:

@@ -17,8 +17,8 @@ from rgmcad.runs.robustness import close_in_warning, failures_line, two_rates
 from rgmcad.scene.perturbation import PhysicsRanges
 
 __all__ = ["REPORT_FILE", "SLICE_PLOT", "PROGRESS_PLOT", "ROBUSTNESS_PLOT", "ERROR_GRID",
-           "RANGE_END", "RANGE_END_NOTE", "RANGE_END_SENTENCE", "placement_lines", "range_end_marks",
-           "report_markdown", "plot_slice", "plot_progress", "plot_robustness",
+           "RANGE_END", "RANGE_END_NOTE", "RANGE_END_SENTENCE", "placement_lines", "count_line",
+           "range_end_marks", "report_markdown", "plot_slice", "plot_progress", "plot_robustness",
            "predicted_robustness", "user_scale"]
 
 REPORT_FILE = "report.md"
@@ -333,3 +333,23 @@ def _close_in_words(close_in: dict | None) -> str:
         return words + "it did."
     return words + (f"{' and '.join(close_in['passed_over'])} did not, so "
                     f"{close_in['kept']} was handed out instead.")
+
+
+def _estimate_simulations(summary: dict) -> int:
+    """Simulations of the run summary's rho_g estimate, both kinds of error (0 when none)."""
+    r = summary.get("robustness") or {}
+    return r.get("simulations", 0) + (r.get("physics") or {}).get("simulations", 0)
+
+
+def count_line(summary: dict) -> str:
+    """What the run simulated, in how long; a run learnt at the corners (``worlds``)
+    simulated each layout once per world."""
+    estimate = _estimate_simulations(summary)
+    extra = f" and {estimate} for the rho_g estimate" if estimate else ""
+    n, worlds = summary["simulations"], summary.get("worlds", 1)
+    counted, both = f"{n} simulations", ""
+    if worlds > 1:
+        counted = f"{n} layouts simulated in {worlds} physical worlds each, {n * worlds} simulations"
+        both = " in both" if worlds == 2 else f" in all {worlds}"
+    return (f"{counted} ({summary['successes']} successes{both}, {summary['replayed']} "
+            f"replayed){extra} in {summary['wall_time']:.0f} s")
