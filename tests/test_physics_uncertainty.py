@@ -65,7 +65,7 @@ def test_zero_width_ranges_give_exactly_todays_outcomes(ramp):
 
 _OUTCOMES = """
 import json, sys
-from rgmcad.runs.problem import ScenarioContext, SimRecord, worst_of
+from rgmcad.runs.problem import ScenarioContext
 from rgmcad.scene.perturbation import DEFAULT_PHYSICS, PhysicsDraw
 context = ScenarioContext.load(sys.argv[1])
 x = [float(v) for v in sys.argv[2].split(",")]
