@@ -28,6 +28,7 @@ from rgmcad.learning import (
     learn_active,
     learn_and_optimize,
     maximize_robustness,
+    overlap_ends,
     placement_tolerance,
     select_dimensions,
     smooth_min,
@@ -537,6 +538,36 @@ def test_placement_tolerance():
     np.testing.assert_allclose(
         placement_tolerance(certain, np.array([0.25, 0.9]), FAST), [[0.25, 0.75], [0.9, 0.1]]
     )
+
+
+def test_a_placement_tolerance_stops_before_parts_overlap():
+    # the model rates every layout certain; a disc of invalid layouts (a part in the way)
+    # lies along each axis from x, and a thin wall past one of them
+    certain = SPDModel(("e",), {"e": ConstantModel(1.0, "quasi-deterministic")}, True)
+    x = np.array([0.4, 0.5, 0.5])
+
+    def validity(P):
+        P = np.atleast_2d(P)
+        return ((np.linalg.norm(P[:, :2] - [0.75, 0.5], axis=1) > 0.1)
+                & (np.linalg.norm(P[:, :2] - [0.4, 0.2], axis=1) > 0.05)
+                & (np.abs(P[:, 2] - 0.9) > 0.002))
+
+    tol = placement_tolerance(certain, x, FAST, validity)
+    # the first invalid layout along each side, found by a fine walk
+    for j in range(3):
+        for k, sign in enumerate((-1.0, 1.0)):
+            room = x[j] if sign < 0 else 1.0 - x[j]
+            t = np.linspace(0.0, room, 20001)
+            P = np.repeat(x[None], len(t), axis=0)
+            P[:, j] += sign * t
+            bad = np.flatnonzero(~validity(P))
+            first = t[bad[0]] if bad.size else room
+            assert first - 0.002 <= tol[j, k] <= first, (j, k, tol[j, k], first)
+            inside = P[t <= tol[j, k]]
+            assert validity(inside).all()  # every layout within the tolerance can be built
+    assert overlap_ends(x, tol, FAST, validity) == ["high", "low", "high"]
+    # without the test the certain model's tolerance runs through the parts
+    np.testing.assert_allclose(placement_tolerance(certain, x, FAST)[:, 1], 1.0 - x)
 
 
 # --- driver -------------------------------------------------------------------------------

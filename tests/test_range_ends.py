@@ -1,6 +1,6 @@
-"""A layout whose placement tolerance stops at the end of a parameter's range: ``rgmcad
-optimize`` says so where the user reads the tolerances (the printed summary, report.md,
-report.html) and tells them what to do, since nothing beyond a range is simulated."""
+"""A layout whose placement tolerance stops at the end of a parameter's range, or where parts
+would overlap: ``rgmcad optimize`` says so where the user reads the tolerances (the printed
+summary, report.md, report.html, the printed template) and tells them what it means."""
 
 from __future__ import annotations
 
@@ -59,3 +59,35 @@ def test_a_tolerance_inside_the_range_is_not_marked():
     x = np.array([0.5, 0.0, 0.97, 0.4])
     tol = np.array([[0.1, 0.2], [0.0, 0.3], [0.2, 0.03], [0.4, 0.6]])
     assert range_ends(x, tol) == [None, "low", "high", "both"]
+
+
+def test_a_tolerance_stops_where_parts_would_meet_and_says_so(tmp_path):
+    # the user moves the crate by the tolerance the run printed, then a little further
+    scenario = ROOT / "tests" / "data" / "crate_by_post.toml"
+    run = tmp_path / "run"
+    code, out, err = cli_output(["optimize", str(scenario), "--budget", "small", "--run",
+                                 str(run), "-q", "--workers", "1"])
+    assert code == 0, err
+    summary = json.loads((run / "result.json").read_text())
+    x = summary["values"]["crate.x"]
+    down, up = summary["tolerances"]["crate.x"]
+    # the crate (4 cm) meets the post (2 cm, at 0.24 m) at x = 0.21 m, give or take the
+    # validity test's 0.2 mm
+    assert 0.2095 <= x + up <= 0.2103, x + up
+    assert summary["overlap_ends"] == {"crate.x": "high"}
+    line = next(ln for ln in out.splitlines() if ln.strip().startswith("crate.x"))
+    assert f"+{up * 1000:.2f} (parts meet)" in line
+    assert "note: a tolerance marked 'parts meet'" in out
+    for name in ("report.md", "report.html"):
+        assert f"{up * 1000:.2f} (parts meet)" in (run / name).read_text(), name
+    layout = str(run / "layout.json")
+    for step, code_expected, word in ((-0.0005, 0, "success"), (0.0005, 1, "invalid")):
+        code, out, _ = cli_output(["-q", "simulate", str(scenario), "--layout", layout,
+                                   "--value", f"crate.x={x + up + step}"])
+        assert code == code_expected and f"outcome: {word}" in out, out
+    # the printed template gives the number, not "not limiting", for the side the post limits
+    code, _, err = cli_output(["template", str(scenario), "--layout", layout, "--out",
+                               str(tmp_path / "tpl"), "-q"])
+    assert code == 0, err
+    svg = (tmp_path / "tpl" / "template.svg").read_text()
+    assert f"+{up * 1000:.1f} mm (below: not limiting within the range)" in svg

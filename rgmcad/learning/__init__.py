@@ -45,6 +45,7 @@ from .graph import Requirement, SuccessLogic, ancestors, topological_events
 from .optimize import (
     OptimizationResult,
     maximize_robustness,
+    overlap_ends,
     placement_tolerance,
     range_ends,
     start_point,
@@ -116,6 +117,7 @@ __all__ = [
     "learn_active",
     "learn_and_optimize",
     "maximize_robustness",
+    "overlap_ends",
     "placement_tolerance",
     "range_ends",
     "query_distribution",

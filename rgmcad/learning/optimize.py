@@ -42,6 +42,7 @@ __all__ = [
     "start_point",
     "start_points",
     "maximize_robustness",
+    "overlap_ends",
     "placement_tolerance",
     "place_unmodelled",
 ]
@@ -245,20 +246,26 @@ def place_unmodelled(model: SPDModel, x: np.ndarray, successes: np.ndarray,
 
 
 def placement_tolerance(
-    model: SPDModel, x: np.ndarray, settings: LearningSettings
+    model: SPDModel, x: np.ndarray, settings: LearningSettings,
+    validity: Callable[[np.ndarray], np.ndarray] | None = None,
 ) -> np.ndarray:
     """How far each coordinate of ``x`` may move, alone, before the predicted success
-    probability drops below ``tolerance_ratio`` times its value at ``x``.
+    probability drops below ``tolerance_ratio`` times its value at ``x``, or (with
+    ``validity``) before the layout stops being buildable (parts overlap).
 
     Along each axis and direction, the probability is scanned every ``tolerance_step`` up to
     the bound of the unit cube; the first crossing is refined by ``tolerance_bisections``
-    bisection steps. Without a crossing the tolerance is the distance to the bound.
+    bisection steps. Without a crossing the tolerance is the distance to the bound. The
+    model has never seen an invalid layout (they are not simulated), so it can rate one
+    highly: without the validity test a tolerance could run through another part.
 
     Parameters
     ----------
     model : SPDModel
     x : (d,) float
     settings : LearningSettings
+    validity : ``(n, d) -> (n,) bool``, optional
+        The exact validity test of design vectors (a problem's ``validity``).
 
     Returns
     -------
@@ -269,6 +276,11 @@ def placement_tolerance(
     x = np.asarray(x, dtype=float).reshape(-1)
     d = len(x)
     threshold = settings.tolerance_ratio * float(model.success_proba(x)[0])
+
+    def fails(P: np.ndarray) -> np.ndarray:
+        out = model.success_proba(P) < threshold
+        return out if validity is None else out | ~np.asarray(validity(P), dtype=bool)
+
     out = np.zeros((d, 2))
     for j in range(d):
         for k, sign in enumerate((-1.0, 1.0)):
@@ -279,7 +291,7 @@ def placement_tolerance(
             t = np.minimum(np.arange(1, n_steps + 1) * settings.tolerance_step, room)
             P = np.repeat(x[None, :], len(t), axis=0)
             P[:, j] += sign * t
-            below = np.flatnonzero(model.success_proba(P) < threshold)
+            below = np.flatnonzero(fails(P))
             if below.size == 0:
                 out[j, k] = room
                 continue
@@ -289,12 +301,36 @@ def placement_tolerance(
                 mid = 0.5 * (lo + hi)
                 p = x.copy()
                 p[j] += sign * mid
-                if model.success_proba(p)[0] < threshold:
+                if fails(p[None, :])[0]:
                     hi = mid
                 else:
                     lo = mid
             out[j, k] = lo
     return out
+
+
+def overlap_ends(x: np.ndarray, tolerances: np.ndarray, settings: LearningSettings,
+                 validity: Callable[[np.ndarray], np.ndarray]) -> list[str | None]:
+    """Per coordinate of ``x``, the sides (``"low"``, ``"high"``, ``"both"`` or None) whose
+    ``tolerances`` (as :func:`placement_tolerance` gives them with ``validity``) stop where
+    parts would overlap: the layout just past the tolerance is invalid."""
+    x = np.asarray(x, dtype=float).reshape(-1)
+    past = 2.0 * settings.tolerance_step / 2 ** settings.tolerance_bisections
+    probes, where = [], []
+    for j in range(len(x)):
+        for k, sign in enumerate((-1.0, 1.0)):
+            v = x[j] + sign * (tolerances[j, k] + past)
+            if 0.0 <= v <= 1.0:
+                p = x.copy()
+                p[j] = v
+                probes.append(p)
+                where.append((j, k))
+    hit = np.zeros((len(x), 2), dtype=bool)
+    if probes:
+        for (j, k), ok in zip(where, validity(np.array(probes)), strict=True):
+            hit[j, k] = not ok
+    return ["both" if lo and hi else "low" if lo else "high" if hi else None
+            for lo, hi in hit]
 
 
 def range_ends(x: np.ndarray, tolerances: np.ndarray) -> list[str | None]:

@@ -72,7 +72,8 @@ class LearningResult:
         alternatives ``any(...)`` (see :meth:`SPDModel.weakest_link`).
     tolerances : (d, 2) float
         Per coordinate, how far it may move down / up (normalised units) before the
-        predicted probability falls below ``tolerance_ratio`` of ``probability``.
+        predicted probability falls below ``tolerance_ratio`` of ``probability`` or parts
+        would overlap.
     x_start : (d,) float
         The start of the refinement (the best sample by predicted probability).
     probability_start : float
@@ -279,7 +280,7 @@ def learn_and_optimize(
     per_event = {e: float(p[0]) for e, p in model.event_probabilities(x).items()}
     probability = float(model.success_proba(x)[0])
     weakest, _ = model.weakest_link(x)
-    tolerances = placement_tolerance(model, x, settings)
+    tolerances = placement_tolerance(model, x, settings, problem.validity)
 
     counts: dict[str, int] = {}
     for st in record.stages:

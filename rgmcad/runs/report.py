@@ -17,9 +17,9 @@ from rgmcad.runs.robustness import close_in_warning, failures_line, two_rates
 from rgmcad.scene.perturbation import PhysicsRanges
 
 __all__ = ["REPORT_FILE", "SLICE_PLOT", "PROGRESS_PLOT", "ROBUSTNESS_PLOT", "ERROR_GRID",
-           "RANGE_END", "RANGE_END_NOTE", "RANGE_END_SENTENCE", "placement_lines", "count_line",
-           "range_end_marks", "report_markdown", "plot_slice", "plot_progress", "plot_robustness",
-           "predicted_robustness", "user_scale"]
+           "RANGE_END", "RANGE_END_NOTE", "PARTS_MEET", "placement_lines", "tolerance_notes",
+           "count_line", "range_end_marks", "report_markdown", "plot_slice", "plot_progress",
+           "plot_robustness", "predicted_robustness", "user_scale"]
 
 REPORT_FILE = "report.md"
 SLICE_PLOT = "probability_slice.png"
@@ -41,15 +41,31 @@ RANGE_END_NOTE = ("a tolerance marked 'end of range' stops where the parameter's
                   "not where the layout fails: nothing beyond a range is simulated. If the "
                   "parts allow, widen that range in the scenario and run again: the layout "
                   "may then move away from the end.")
-RANGE_END_SENTENCE = RANGE_END_NOTE[0].upper() + RANGE_END_NOTE[1:]  # the note as a paragraph
+
+
+PARTS_MEET = " (parts meet)"
+PARTS_MEET_NOTE = ("a tolerance marked 'parts meet' stops where moving that parameter further "
+                   "would make two parts overlap: the layout cannot be built past it.")
 
 
 def range_end_marks(s: dict, name: str) -> tuple[str, str]:
     """The marks of a parameter's tolerance down and up in a run's summary: RANGE_END on a
-    side whose tolerance reaches the end of the range (``range_ends``), else ""."""
-    end = s.get("range_ends", {}).get(name)  # absent from runs made before it
-    return (RANGE_END if end in ("low", "both") else "",
-            RANGE_END if end in ("high", "both") else "")
+    side whose tolerance reaches the end of the range (``range_ends``), PARTS_MEET on one
+    that stops where parts would overlap (``overlap_ends``), else ""."""
+    marks = []
+    for side in ("low", "high"):
+        # both absent from runs made before them
+        ends = {key: s.get(key, {}).get(name) in (side, "both")
+                for key in ("range_ends", "overlap_ends")}
+        marks.append(RANGE_END if ends["range_ends"] else
+                     PARTS_MEET if ends["overlap_ends"] else "")
+    return marks[0], marks[1]
+
+
+def tolerance_notes(s: dict) -> list[str]:
+    """The notes that explain the marks of :func:`range_end_marks` in a run's summary."""
+    return ([RANGE_END_NOTE] if s.get("range_ends") else []) + (
+        [PARTS_MEET_NOTE] if s.get("overlap_ends") else [])
 
 
 def placement_lines(s: dict) -> list[str]:
@@ -61,8 +77,7 @@ def placement_lines(s: dict) -> list[str]:
         low_end, high_end = range_end_marks(s, name)
         lines.append(f"  {name:24s} {s['values'][name] * k:9.2f} {unit:3s}  "
                      f"-{down * k:.2f}{low_end} / +{up * k:.2f}{high_end}")
-    if s.get("range_ends"):
-        lines.append(f"note: {RANGE_END_NOTE}")
+    lines += [f"note: {note}" for note in tolerance_notes(s)]
     return lines
 
 
@@ -106,8 +121,8 @@ def report_markdown(scenario, s: dict, low, high) -> str:
         lines.append(f"| {f.name} | {s['values'][f.name] * k:.2f} {unit} | {down * k:.2f}"
                      f"{low_end} | {up * k:.2f}{high_end} | [{low[j] * k:.2f}, "
                      f"{high[j] * k:.2f}] |")
-    if s.get("range_ends"):
-        lines += ["", RANGE_END_SENTENCE]
+    for note in tolerance_notes(s):
+        lines += ["", note[0].upper() + note[1:]]
     if s.get("verification"):
         lines += ["", "## Choice of the layout", "",
                   "Each candidate succeeded in simulation; then it was simulated at "

@@ -264,7 +264,7 @@ def influence(model, x: np.ndarray) -> np.ndarray:
     return out
 
 
-def _at_layout(model, result, chosen: dict, x: np.ndarray):
+def _at_layout(model, result, chosen: dict, x: np.ndarray, validity):
     """(per-event probabilities, probability, weakest requirement, its probability, (d, 2)
     normalised tolerances) at the chosen layout: the learner's own numbers at its optimum."""
     from rgmcad.learning import placement_tolerance
@@ -275,7 +275,7 @@ def _at_layout(model, result, chosen: dict, x: np.ndarray):
     else:
         per_event = {e: float(p[0]) for e, p in model.event_probabilities(x).items()}
         probability = float(model.success_proba(x)[0])
-        tol = placement_tolerance(model, x, result.settings)
+        tol = placement_tolerance(model, x, result.settings, validity)
     weakest, weakest_probability = model.weakest_link(x)
     return per_event, probability, weakest, weakest_probability, tol
 
@@ -296,7 +296,7 @@ def _readable_json(path: Path) -> bool:
 
 def _write_outputs(scenario, store, recorded, result, chosen, wall_time, seed, budget,
                    robustness=None, starts=None) -> dict:
-    from rgmcad.learning import range_ends
+    from rgmcad.learning import overlap_ends, range_ends
     from rgmcad.scene.design_space import bounds
     from rgmcad.scene.layout_files import layout_document
 
@@ -305,7 +305,7 @@ def _write_outputs(scenario, store, recorded, result, chosen, wall_time, seed, b
     x = np.asarray(chosen["x"], dtype=float)
     low, high = bounds(scenario)
     per_event, probability, weakest, weakest_probability, tol = _at_layout(
-        model, result, chosen, x)
+        model, result, chosen, x, recorded.validity)
     tolerances = {f.name: [float(tol[j, 0] * (high[j] - low[j])),
                            float(tol[j, 1] * (high[j] - low[j]))]
                   for j, f in enumerate(scenario.free)}
@@ -337,6 +337,9 @@ def _write_outputs(scenario, store, recorded, result, chosen, wall_time, seed, b
         "tolerances": tolerances,
         "range_ends": {f.name: end for f, end in zip(scenario.free, range_ends(x, tol),
                                                       strict=True) if end},
+        "overlap_ends": {f.name: end for f, end in zip(
+            scenario.free, overlap_ends(x, tol, result.settings, recorded.validity),
+            strict=True) if end},
         "influence": {f.name: float(v) for f, v in zip(scenario.free, spread, strict=True)},
         "verified": chosen["verified"],
         "source": chosen["source"],
