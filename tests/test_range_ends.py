@@ -10,6 +10,7 @@ from pathlib import Path
 import numpy as np
 
 from rgmcad.learning import range_ends
+from rgmcad.runs.report import ROUGH_MODEL, tolerance_notes
 from tests._support import cli_output
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -91,3 +92,15 @@ def test_a_tolerance_stops_where_parts_would_meet_and_says_so(tmp_path):
     assert code == 0, err
     svg = (tmp_path / "tpl" / "template.svg").read_text()
     assert f"+{up * 1000:.1f} mm (below: not limiting within the range)" in svg
+
+
+def test_tolerances_of_a_rough_model_come_with_a_caution():
+    # a small budget's model that rates its own verified layout 0.07 (a user's 8-parameter
+    # scenario did): its tolerances are only as good as it is
+    s = {"probability": 0.066, "verified": True, "budget": "small"}
+    (note,) = tolerance_notes(s)
+    assert "rates this layout's success at 0.07" in note and "rgmcad evaluate" in note
+    assert "default budget" in note
+    assert "default budget" not in tolerance_notes({**s, "budget": "default"})[0]
+    assert tolerance_notes({**s, "probability": ROUGH_MODEL}) == []
+    assert tolerance_notes({**s, "verified": False}) == []  # no layout succeeded: said apart

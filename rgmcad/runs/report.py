@@ -62,10 +62,24 @@ def range_end_marks(s: dict, name: str) -> tuple[str, str]:
     return marks[0], marks[1]
 
 
+ROUGH_MODEL = 0.5
+"""A layout that succeeded in simulation but that the model rates below this: the model is
+rough there, and so are the tolerances it gives."""
+
+
 def tolerance_notes(s: dict) -> list[str]:
-    """The notes that explain the marks of :func:`range_end_marks` in a run's summary."""
-    return ([RANGE_END_NOTE] if s.get("range_ends") else []) + (
+    """The notes under a run's tolerances: what the marks of :func:`range_end_marks` mean,
+    and a caution when the model itself is too rough to give them."""
+    notes = ([RANGE_END_NOTE] if s.get("range_ends") else []) + (
         [PARTS_MEET_NOTE] if s.get("overlap_ends") else [])
+    if s.get("verified") and s["probability"] < ROUGH_MODEL:
+        notes.append(
+            f"the model rates this layout's success at {s['probability']:.2f}, though it "
+            "succeeded when simulated: the model is rough here, and so are these tolerances "
+            "(they are the model's); `rgmcad evaluate` measures the layout by simulation"
+            + (", and the default budget learns a finer model" if s.get("budget") == "small"
+               else "") + ".")
+    return notes
 
 
 def placement_lines(s: dict) -> list[str]:
