@@ -435,6 +435,14 @@ def test_free_ranges_where_every_layout_overlaps_are_refused_in_one_line(tmp_pat
     err = capsys.readouterr().err.strip().splitlines()
     assert code == 2 and len(err) == 1
     assert str(overlapping) in err[0] and ": free: " in err[0] and "--vector 0.5,0.5,0.5" in err[0]
+    # nothing was simulated: no run directory is left behind to puzzle over (a folder the
+    # user made beforehand stays, and so does one whose journal holds simulations)
+    assert not (tmp_path / "run").exists()
+    mine = tmp_path / "mine"
+    mine.mkdir()
+    assert main(["optimize", str(overlapping), "--budget", "small", "--run", str(mine),
+                 "--workers", "1", "-q"]) == 2
+    assert mine.is_dir()
 
 
 def test_evaluate_warns_when_a_layout_fails_even_placed_almost_exactly(tmp_path, capsys):
