@@ -133,6 +133,12 @@ def test_evaluate_reports_both_robustness_figures(tmp_path):
                               "--physics", "off"])
     assert json.loads(out)["physics"] is None
     assert json.loads(out)["curve"] == result["curve"]  # the same placement errors
+    # read as text, the count covers every simulation that ran, both kinds of error
+    code, out, _ = cli_output(["evaluate", RAMP, "--layout", "central", "--samples", "1",
+                              "--workers", "1", "--out", str(tmp_path / "r.png"),
+                              "--physics", "friction=0.3,mass=0.05"])
+    n = result["simulations"]
+    assert code == 0 and f"from {n} simulations (and {n} with physical errors" in out
 
 
 @pytest.mark.parametrize("ranges", ["friction=2", "mass=-0.1", "mass=abc", "gravity=0.1",

@@ -61,10 +61,11 @@ def run(args) -> int:
         say(json.dumps(result))
         return 0
     low, high = result["rho_g_interval"]
+    phys = result["physics"]
+    more = "" if phys is None else f" (and {phys['simulations']} with physical errors, below)"
     say(f"{result['scenario']}, layout {result['layout']}: rho_g = {result['rho_g']:.3f} "
         f"[{low:.3f}, {high:.3f}] under placement errors, from {result['simulations']} "
-        f"simulations in {result['wall_time']:.0f} s")
-    phys = result["physics"]
+        f"simulations{more} in {result['wall_time']:.0f} s")
     if phys is not None:
         low, high = phys["rho_g_interval"]
         say(f"  rho_g = {phys['rho_g']:.3f} [{low:.3f}, {high:.3f}] under placement plus "
