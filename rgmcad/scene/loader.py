@@ -31,6 +31,7 @@ from rgmcad.scene.loader_checks import (
     key_text,
     one_line,
     read_text,
+    toml_error,
 )
 from rgmcad.scene.loader_events import parse_events
 from rgmcad.scene.loader_ropes import parse_ropes
@@ -90,7 +91,8 @@ def load_scenario(path: str | Path, *, parts_dir: Path | None = None) -> Scenari
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
-        raise one_line(ScenarioError(str(path), "", f"not valid TOML: {exc}")) from None
+        raise one_line(ScenarioError(str(path), "", f"not valid TOML: "
+                                     f"{toml_error(text, str(exc))}")) from None
     except RecursionError:
         raise ScenarioError(str(path), "", "not valid TOML here: arrays or tables nested too "
                             "deeply to read") from None

@@ -101,3 +101,27 @@ def read_text(path: Path, what: str = "scenario file") -> str:
     except UnicodeDecodeError as exc:
         raise ScenarioError(where, "", f"not UTF-8 text (byte {exc.start:,} cannot be read); "
                             "save the file as UTF-8") from None
+
+
+_AT = re.compile(r"\(at line (\d+), column \d+\)")
+_HEADER = re.compile(r"^\s*\[\[?\s*([^\]]+?)\s*\]\]?\s*(#.*)?$")
+_KEY = re.compile(r"^\s*([A-Za-z0-9_.\-\"' ]+?)\s*=")
+
+
+def toml_error(text: str, message: str) -> str:
+    """A TOML reader's ``message`` with the key it stopped at, as the file names it
+    (``objects.cup.mass``), read from ``text`` at the line the message gives: the reader
+    says where, not what (``Cannot overwrite a value (at line 60, column 12)``)."""
+    found = _AT.search(message)
+    lines = text.splitlines()
+    if not found or not 1 <= int(found[1]) <= len(lines):
+        return message
+    number = int(found[1])
+    key = _KEY.match(lines[number - 1])
+    if key is None:
+        return message
+    table = next((h[1] for line in reversed(lines[:number - 1]) if (h := _HEADER.match(line))),
+                 None)
+    name = key[1].replace(" ", "").replace('"', "").replace("'", "")
+    where = f"{found[0][:-1]}: key {(table + '.' if table else '') + name!r})"
+    return message[:found.start()] + where + message[found.end():]
