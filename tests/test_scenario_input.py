@@ -218,6 +218,7 @@ SIMPLE = Path("scenarios/simple.toml").read_text()
     ("mass = 0.03", "mass = 50", "runs.run.mass", "grams"),
     ("thickness = 0.005", "thickness = 5", "runs.run.domino.thickness", "millimetres"),
     ("mass = 0.01", "density = 7.8", "objects.ball.density", "grams per cm^3"),
+    ("roll = [15, 75]", "roll = [0.26, 1.31]", "objects.track.free.roll", "radians"),
 ])
 def test_implausible_sizes_and_masses_warn_naming_the_key(old, new, key, slip, tmp_path, caplog):
     file = tmp_path / "slip.toml"

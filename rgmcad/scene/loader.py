@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import dataclasses
 import inspect
+import math
 import tomllib
 from collections.abc import Mapping
 from pathlib import Path
@@ -353,8 +354,19 @@ def _parse_free(raw, obj_name, where, key) -> list[FreeParameter]:
         if not high - low >= MIN_RANGE:
             raise ScenarioError(where, k, f"range min must be < max (by at least "
                                 f"{MIN_RANGE:g} {spec.unit}), got [{low:g}, {high:g}]")
+        if spec.unit == "deg" and _reads_as_radians(low, high):
+            warn(f"{where}: {k}: a range of {high - low:g} deg is unusual: radians written as "
+                 f"degrees? ([{low:g}, {high:g}] rad is [{math.degrees(low):.1f}, "
+                 f"{math.degrees(high):.1f}] deg)")
         out.append(FreeParameter(obj_name, component, low, high))
     return out
+
+
+def _reads_as_radians(low: float, high: float) -> bool:
+    """A range of an angle that looks written in radians: narrower than 1.6 degrees (a
+    quarter turn in radians), within a turn in radians, not both ends whole degrees."""
+    return (high - low < 1.6 and max(abs(low), abs(high)) <= 2 * math.pi
+            and not (low.is_integer() and high.is_integer()))
 
 
 def _check_parents(objects, runs, where):
