@@ -69,17 +69,27 @@ def block_size(lines) -> tuple[float, float]:
     return width, height
 
 
+GROWTH_COST = 0.05
+"""Cost of a label per mm it widens or heightens the drawing (overlaps cost 1 per mm²): among
+free places, one inside the drawing wins; a label out in the margin can cost a sheet."""
+
+
 def place_labels(outlines, sizes, avoid=(), inside=None) -> list[tuple[float, float, float, float]]:
     """Greedy label placement beside each outline, avoiding outlines and earlier labels.
 
-    Candidates are tried around the outline's bounding box at growing distances; the first
-    free one wins, else the one that overlaps least. ``avoid`` are more areas to keep clear
-    (shapely, e.g. seam lines and their marks); a label should lie within ``inside`` (e.g.
-    the area the sheets keep), if given.
+    Candidates are tried around the outline's bounding box at growing distances, beside each
+    side and slid along it; the one that overlaps least wins, ties going to the one that
+    grows the drawing least (its extent: every outline and the labels placed so far), then
+    to the nearest. ``avoid`` are more areas to keep clear (shapely, e.g. seam lines and
+    their marks); a label should lie within ``inside`` (e.g. the area the sheets keep), if
+    given.
     """
     obstacles = [o.buffer(1.0) for o in outlines] + list(avoid)
     bounds = [np.array(o.bounds) for o in obstacles]
     boxes: list[tuple[float, float, float, float]] = []
+    extent = (np.array([g.bounds for g in outlines]) if outlines else np.zeros((1, 4)))
+    ex0, ey0 = extent[:, 0].min(), extent[:, 1].min()
+    ex1, ey1 = extent[:, 2].max(), extent[:, 3].max()
 
     def overlap(b):
         cost = 0.0
@@ -114,15 +124,24 @@ def place_labels(outlines, sizes, avoid=(), inside=None) -> list[tuple[float, fl
                 (bx0 - d - w, by1 - h),
                 (bx0 - d - w, by0),
             ]
-        best, best_cost = cands[0], math.inf
+            for shift in (-1.0, 1.0, -2.0, 2.0, -3.0, 3.0):  # slid along the side
+                cands += [(cx - w / 2 + shift * w / 2, by1 + d),
+                          (cx - w / 2 + shift * w / 2, by0 - d - h),
+                          (bx1 + d, cy - h / 2 + shift * h),
+                          (bx0 - d - w, cy - h / 2 + shift * h)]
+        best, best_cost, best_overlap = cands[0], math.inf, 0.0
         for i, (x0, y0) in enumerate(cands):
-            cost = overlap(shapely_box(x0, y0, x0 + w, y0 + h)) + 1e-3 * i
-            if cost < best_cost:
-                best, best_cost = (x0, y0), cost
-            if cost < 1e-3 * (i + 1):
-                break
-        if best_cost > 1.0:
-            log.info("label %d overlaps other drawing by %.1f mm²", k, best_cost)
+            growth = (max(ex0 - x0, 0.0) + max(x0 + w - ex1, 0.0)
+                      + max(ey0 - y0, 0.0) + max(y0 + h - ey1, 0.0))
+            tie = GROWTH_COST * growth + 1e-4 * i
+            if tie >= best_cost:
+                continue
+            cost = overlap(shapely_box(x0, y0, x0 + w, y0 + h))
+            if cost + tie < best_cost:
+                best, best_cost, best_overlap = (x0, y0), cost + tie, cost
+        if best_overlap > 1.0:
+            log.info("label %d overlaps other drawing by %.1f mm²", k, best_overlap)
         x0, y0 = best
         boxes.append((x0, y0, x0 + w, y0 + h))
+        ex0, ey0, ex1, ey1 = min(ex0, x0), min(ey0, y0), max(ex1, x0 + w), max(ey1, y0 + h)
     return boxes
