@@ -219,6 +219,8 @@ SIMPLE = Path("scenarios/simple.toml").read_text()
     ("thickness = 0.005", "thickness = 5", "runs.run.domino.thickness", "millimetres"),
     ("mass = 0.01", "density = 7.8", "objects.ball.density", "grams per cm^3"),
     ("roll = [15, 75]", "roll = [0.26, 1.31]", "objects.track.free.roll", "radians"),
+    ("pose = { x = -0.02, z = 0.01 }", "pose = { x = -20, z = 0.01 }", "objects.ball.pose.x",
+     "millimetres"),
 ])
 def test_implausible_sizes_and_masses_warn_naming_the_key(old, new, key, slip, tmp_path, caplog):
     file = tmp_path / "slip.toml"

@@ -210,7 +210,7 @@ SIZE = Number("m", 1e-5, 100, usual=(0, 2), slip=("", MM_AS_M))
 SPREAD = Number("m", 0, 100)
 """A width or length that may be zero (a wave or a branch with no sideways swing, a line of
 one domino)."""
-POSITION = Number("m", -1000, 1000)
+POSITION = Number("m", -1000, 1000, usual=(0, 10), slip=("", MM_AS_M))
 ANGLE = Number("deg", -360, 360)
 COUNT = Number("", 1, MAX_RUN, integer=True, why=f"at most {MAX_RUN:,} dominoes per run")
 XY = Vector(POSITION, 2)
