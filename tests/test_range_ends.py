@@ -63,35 +63,38 @@ def test_a_tolerance_inside_the_range_is_not_marked():
 
 
 def test_a_tolerance_stops_where_parts_would_meet_and_says_so(tmp_path):
-    # the user moves the crate by the tolerance the run printed, then a little further
+    # the user moves the crate by the tolerance the run printed, then a little further (two
+    # workers: the tolerances are written once the simulation pool has closed)
     scenario = ROOT / "tests" / "data" / "crate_by_post.toml"
     run = tmp_path / "run"
     code, out, err = cli_output(["optimize", str(scenario), "--budget", "small", "--run",
-                                 str(run), "-q", "--workers", "1"])
+                                 str(run), "-q", "--workers", "2"])
     assert code == 0, err
     summary = json.loads((run / "result.json").read_text())
     x = summary["values"]["crate.x"]
     down, up = summary["tolerances"]["crate.x"]
-    # the crate (4 cm) meets the post (2 cm, at 0.24 m) at x = 0.21 m, give or take the
-    # validity test's 0.2 mm
-    assert 0.2095 <= x + up <= 0.2103, x + up
-    assert summary["overlap_ends"] == {"crate.x": "high"}
+    # the crate (4 cm) meets the posts (2 cm, at 0 and 0.24 m) at x = 0.03 and 0.21 m, give
+    # or take the validity test's 0.2 mm
+    assert 0.0297 <= x - down <= 0.0305 and 0.2095 <= x + up <= 0.2103, (x - down, x + up)
+    assert summary["overlap_ends"] == {"crate.x": "both"}
     line = next(ln for ln in out.splitlines() if ln.strip().startswith("crate.x"))
-    assert f"+{up * 1000:.2f} (parts meet)" in line
+    assert f"-{down * 1000:.2f} (parts meet) / +{up * 1000:.2f} (parts meet)" in line
     assert "note: a tolerance marked 'parts meet'" in out
     for name in ("report.md", "report.html"):
         assert f"{up * 1000:.2f} (parts meet)" in (run / name).read_text(), name
     layout = str(run / "layout.json")
-    for step, code_expected, word in ((-0.0005, 0, "success"), (0.0005, 1, "invalid")):
+    for to, code_expected, word in ((x + up - 0.0005, 0, "success"), (x + up + 0.0005, 1,
+                                    "invalid"), (x - down + 0.0005, 0, "success"),
+                                    (x - down - 0.0005, 1, "invalid")):
         code, out, _ = cli_output(["-q", "simulate", str(scenario), "--layout", layout,
-                                   "--value", f"crate.x={x + up + step}"])
+                                   "--value", f"crate.x={to}"])
         assert code == code_expected and f"outcome: {word}" in out, out
-    # the printed template gives the number, not "not limiting", for the side the post limits
+    # the printed template gives the numbers, not "not limiting within the range"
     code, _, err = cli_output(["template", str(scenario), "--layout", layout, "--out",
                                str(tmp_path / "tpl"), "-q"])
     assert code == 0, err
     svg = (tmp_path / "tpl" / "template.svg").read_text()
-    assert f"+{up * 1000:.1f} mm (below: not limiting within the range)" in svg
+    assert f"x -{down * 1000:.1f}/+{up * 1000:.1f} mm" in svg and "not limiting" not in svg
 
 
 def test_tolerances_of_a_rough_model_come_with_a_caution():

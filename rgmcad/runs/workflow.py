@@ -312,8 +312,9 @@ def _write_outputs(scenario, store, recorded, result, chosen, wall_time, seed, b
     model = result.model
     x = np.asarray(chosen["x"], dtype=float)
     low, high = bounds(scenario)
+    validity = recorded.problem.validity  # here, in this process: the pool is closed
     per_event, probability, weakest, weakest_probability, tol = _at_layout(
-        model, result, chosen, x, recorded.validity)
+        model, result, chosen, x, validity)
     tolerances = {f.name: [float(tol[j, 0] * (high[j] - low[j])),
                            float(tol[j, 1] * (high[j] - low[j]))]
                   for j, f in enumerate(scenario.free)}
@@ -346,7 +347,7 @@ def _write_outputs(scenario, store, recorded, result, chosen, wall_time, seed, b
         "range_ends": {f.name: end for f, end in zip(scenario.free, range_ends(x, tol),
                                                       strict=True) if end},
         "overlap_ends": {f.name: end for f, end in zip(
-            scenario.free, overlap_ends(x, tol, result.settings, recorded.validity),
+            scenario.free, overlap_ends(x, tol, result.settings, validity),
             strict=True) if end},
         "influence": {f.name: float(v) for f, v in zip(scenario.free, spread, strict=True)},
         "verified": chosen["verified"],
