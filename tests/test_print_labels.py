@@ -172,7 +172,7 @@ def test_labels_of_a_crowded_row_do_not_cost_a_sheet(tmp_path):
     # a user's machine (five dominoes on a table push a ball off a ledge, down a ramp, into a
     # cup): the first domino's label once went 115 mm out past the table, and the template
     # took a fourth sheet for it; where the parts fit on N sheets, their labels find room too
-    scenario = load_scenario("tests/data/table_push.toml")
+    scenario = load_scenario("tools/generality/table_push.toml")
     _, values = resolve_layout(scenario, "hand", None)
     r = scene_template(scenario, make_scene(scenario, values, load_parts(scenario)), tmp_path,
                        paper="a4")
