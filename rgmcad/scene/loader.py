@@ -415,6 +415,10 @@ def _parse_joints(raw, objects, families, where) -> tuple[Joint, ...]:
                 raise ScenarioError(where, f"{key}.objects", f"unknown body {show(n)}")
         if len(set(names)) != len(names):
             raise ScenarioError(where, f"{key}.objects", "a joint joins two different bodies")
+        if kind == "hinge" and objects[names[0]].physical.static:
+            raise ScenarioError(where, f"{key}.objects", f"{show(names[0])} has no mass or "
+                                "density, so it never moves: give it one to swing on the "
+                                "hinge (the moving body comes first)")
         vec = {k: JOINT[k].read(j[k], where, f"{key}.{k}") for k in JOINT if k in j}
         joints.append(Joint(kind, tuple(names), **vec))
     return tuple(joints)

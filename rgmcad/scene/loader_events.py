@@ -92,6 +92,11 @@ def parse_events(raw, objects, families, runs, where,
         if join not in ("all", "any"):
             raise ScenarioError(where, f"{key}.join",
                                 f"unknown join {show(join)}; allowed: all, any")
+        if join == "any" and len(set(after)) < 2:
+            raise ScenarioError(where, f"{key}.join", "join = \"any\" waits for the first of two "
+                                "or more events in `after`; this event has "
+                                f"{len(set(after)) or 'none'}: write join = \"all\" or name "
+                                "the alternatives")
         negate = _parse_negate(ev.get("negate", False), where, f"{key}.negate")
         timeout = ev.get("timeout")
         if timeout is not None:
