@@ -183,3 +183,15 @@ def test_labels_of_a_crowded_row_do_not_cost_a_sheet(tmp_path):
     for p in r.parts:  # and each label still clear of every part
         label = shapely_box(*p.label_box)
         assert not any(label.intersects(q.outline) for q in r.parts), p.name
+
+
+@pytest.mark.parametrize("plane, up", [("floor", "+y"), ("xz", "+z")])
+def test_the_legend_names_the_axes_the_arrows_show(plane, up, tmp_path):
+    # a user read "arrows 'world +x', 'world +z'" on a floor template whose arrows said +y
+    scenario = load_scenario("scenarios/simple.toml")
+    _, values = resolve_layout(scenario, "initial", None)
+    r = scene_template(scenario, make_scene(scenario, values, load_parts(scenario)), tmp_path,
+                       paper="a4", plane=plane)
+    first = " ".join(_text(r.pdf)[0].split())
+    assert f"world {up}" in first  # the arrow's name
+    assert f"arrows 'world +x', 'world {up}': the world axes" in first

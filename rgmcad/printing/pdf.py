@@ -21,6 +21,7 @@ from rgmcad.printing.ropes import rope_rows
 from rgmcad.printing.seams import seams_of
 from rgmcad.printing.sheetpage import (
     PRINT_NOTE,
+    axis_name,
     bottom_band,
     orientation_arrows,
     tile_page,
@@ -318,7 +319,8 @@ def _cover_pages(pdf, drawing, parts, info: SheetInfo, sheets, grid, title, fram
          "goes under), letter pairs meeting (AB on AB); tape across", False),
         ("grey ticks along the top and left of what a sheet keeps: world coordinates in mm "
          "(e.g. 'x 150'), to place the sheets", False),
-        ("arrows 'world +x', 'world +z': the world axes along the paper's right and up",
+        (f"arrows 'world {axis_name(frame.u_axis) or 'u'}', 'world "
+         f"{axis_name(frame.v_axis) or 'v'}': the world axes along the paper's right and up",
          False),
         ("black squares in the corners: marks for verify-print; keep them", False),
     ]
