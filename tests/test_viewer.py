@@ -197,3 +197,12 @@ def test_tight_tolerances_are_highlighted(optimized):
         k, limit = (1.0, TIGHT_DEG) if f.unit == "deg" else (1000.0, TIGHT_MM)
         tight = min(summary["tolerances"][f.name]) * k < limit
         assert (f'<tr class="tight"><td><code>{f.name}</code>' in text) == tight
+
+
+def test_an_or_join_reads_as_one_in_the_replay(tmp_path, capsys):
+    # a user read "after a, b" on an event that waits for either, as if it waited for both
+    out = tmp_path / "or.html"
+    assert main(["simulate", "tools/generality/split_seesaw.toml", "--layout", "hand",
+                 "--html", str(out), "-q"]) == 0
+    text = out.read_text()
+    assert "after the first of ball_in_box or cylinder_in_box" in text

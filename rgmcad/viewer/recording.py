@@ -52,7 +52,7 @@ class Replay:
     poses : (f, b, 4, 4) float
         World transform of every body's part frame at every frame.
     events : tuple of dict
-        ``{"name", "after", "state", "time", "description"}`` in the scenario's order.
+        ``{"name", "after", "join", "state", "time", "description"}`` in the scenario's order.
     outcome : str
     """
 
@@ -121,7 +121,8 @@ def record_replay(scenario: Scenario, values, parts: Mapping, *, rate: float = D
         static.append(body.static)
         colors.append(_STATIC if body.static else _PALETTE[i % len(_PALETTE)])
     labels = {e.name: e for e in result.events}
-    events = tuple({"name": name, "after": list(spec.after), "state": labels[name].state.value,
+    events = tuple({"name": name, "after": list(spec.after), "join": spec.join,
+                    "state": labels[name].state.value,
                     "time": labels[name].time, "description": spec.description}
                    for name, spec in scenario.events.items())
     return result, Replay(
