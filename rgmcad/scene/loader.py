@@ -32,6 +32,7 @@ from rgmcad.scene.loader_checks import (
     key_text,
     one_line,
     read_text,
+    reads_as_radians,
     toml_error,
 )
 from rgmcad.scene.loader_events import parse_events
@@ -292,6 +293,10 @@ def _run_path(raw, where, key, folder: Path) -> np.ndarray:
     if not np.all(np.isfinite(coords)):
         raise ScenarioError(where, f"{key}.path", f"this {kind} path gives positions that are "
                             "not finite numbers")
+    gaps = np.linalg.norm(np.diff(coords[:, :2], axis=0), axis=1)
+    if len(gaps) and gaps.min() < 1e-6:
+        raise ScenarioError(where, f"{key}.path", f"this {kind} path stands two dominoes in one "
+                            "place (a path of no length: an arc from an angle to itself?)")
     return coords
 
 
@@ -354,19 +359,12 @@ def _parse_free(raw, obj_name, where, key) -> list[FreeParameter]:
         if not high - low >= MIN_RANGE:
             raise ScenarioError(where, k, f"range min must be < max (by at least "
                                 f"{MIN_RANGE:g} {spec.unit}), got [{low:g}, {high:g}]")
-        if spec.unit == "deg" and _reads_as_radians(low, high):
+        if spec.unit == "deg" and reads_as_radians(low, high):
             warn(f"{where}: {k}: a range of {high - low:g} deg is unusual: radians written as "
                  f"degrees? ([{low:g}, {high:g}] rad is [{math.degrees(low):.1f}, "
                  f"{math.degrees(high):.1f}] deg)")
         out.append(FreeParameter(obj_name, component, low, high))
     return out
-
-
-def _reads_as_radians(low: float, high: float) -> bool:
-    """A range of an angle that looks written in radians: narrower than 1.6 degrees (a
-    quarter turn in radians), within a turn in radians, not both ends whole degrees."""
-    return (high - low < 1.6 and max(abs(low), abs(high)) <= 2 * math.pi
-            and not (low.is_integer() and high.is_integer()))
 
 
 def _check_parents(objects, runs, where):

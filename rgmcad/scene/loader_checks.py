@@ -6,6 +6,7 @@ what is allowed. Numbers are checked against :mod:`rgmcad.scene.schema`.
 
 from __future__ import annotations
 
+import math
 import re
 from pathlib import Path
 
@@ -125,3 +126,10 @@ def toml_error(text: str, message: str) -> str:
     name = key[1].replace(" ", "").replace('"', "").replace("'", "")
     where = f"{found[0][:-1]}: key {(table + '.' if table else '') + name!r})"
     return message[:found.start()] + where + message[found.end():]
+
+
+def reads_as_radians(low: float, high: float) -> bool:
+    """A range of an angle that looks written in radians: narrower than 1.6 degrees (a
+    quarter turn in radians), within a turn in radians, not both ends whole degrees."""
+    return (high - low < 1.6 and max(abs(low), abs(high)) <= 2 * math.pi
+            and not (low.is_integer() and high.is_integer()))
