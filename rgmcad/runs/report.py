@@ -84,7 +84,8 @@ def tolerance_notes(s: dict) -> list[str]:
 
 def placement_lines(s: dict) -> list[str]:
     """A run's placement tolerances as ``rgmcad optimize`` prints them (mm and degrees)."""
-    lines = ["placement tolerances (down / up):"]
+    lines = ["placement tolerances (down / up), as the model predicts them (one parameter "
+             "moved alone; `rgmcad simulate ... --value NAME=V` tries one):"]
     for name, (down, up) in s["tolerances"].items():
         angle = name.split(".")[-1] in ("heading", "pitch", "roll")
         k, unit = (1.0, "deg") if angle else (1000.0, "mm")
