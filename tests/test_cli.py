@@ -293,3 +293,14 @@ def test_simulate_json_of_an_invalid_layout_has_no_poses(capsys):
     assert main(["simulate", "scenarios/simple.toml", "--vector", "0,0,0.5", "--json"]) == 1
     out = json.loads(capsys.readouterr().out)
     assert out["outcome"] == "invalid" and "final_poses" not in out
+
+
+def test_a_success_that_needed_one_alternative_says_so(tmp_path, capsys):
+    # an OR-join's other branch never happens (the first domino never touches the track):
+    # the run succeeds, and "5/6 events" alone read like a failure to a user
+    text = _event('type = "contact"\nfirst = "run[0]"\nsecond = "track"\n')
+    text = text.replace('after = ["last_dom_topples"]',
+                        'after = ["last_dom_topples", "extra"]\njoin = "any"')
+    assert main(["simulate", _write(tmp_path, text)]) == 0
+    last = capsys.readouterr().out.strip().splitlines()[-1]
+    assert last.startswith("outcome: success (5/6 events, the other 1 not needed (alternatives)")

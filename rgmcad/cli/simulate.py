@@ -90,10 +90,7 @@ def run(args) -> int:
                    values={f.name: float(v) for f, v in zip(scenario.free, values, strict=True)})
         if ends:
             out["final_poses"] = ends
-        if args.video:
-            out["video"] = args.video
-        if args.html:
-            out["html"] = args.html
+        out.update({k: v for k, v in (("video", args.video), ("html", args.html)) if v})
         if physics is not None:
             out["physics"] = {"ranges": physics.ranges.to_json(), "seed": physics.seed,
                               "draw": physics.index}
@@ -110,8 +107,10 @@ def run(args) -> int:
         rows = [(e.name, e.state, "" if e.time is None else f"{e.time:.3f}")
                 for e in sorted(result.events, key=lambda e: (e.time is None, e.time or 0))]
         print_table(rows, ("event", "state", "time (s)"))
-    say(f"outcome: {result.outcome.value} ({result.n_success}/{len(result.events)} events, "
-        f"{result.sim_time:.3f} s simulated in {result.wall_time:.2f} s)"
+    spare = len(result.events) - result.n_success if result.outcome is Outcome.SUCCESS else 0
+    say(f"outcome: {result.outcome.value} ({result.n_success}/{len(result.events)} events"
+        + (f", the other {spare} not needed (alternatives)" if spare else "")
+        + f", {result.sim_time:.3f} s simulated in {result.wall_time:.2f} s)"
         + ("" if args.until is None else f"; stopped at --until {args.until:g} s"))
     if args.video:
         say(f"video: {args.video}")
