@@ -21,9 +21,9 @@ from rgmcad.printing.ropes import rope_rows
 from rgmcad.printing.seams import seams_of
 from rgmcad.printing.sheetpage import (
     PRINT_NOTE,
-    axis_name,
     bottom_band,
     orientation_arrows,
+    page_axes,
     tile_page,
     top_band,
 )
@@ -319,9 +319,8 @@ def _cover_pages(pdf, drawing, parts, info: SheetInfo, sheets, grid, title, fram
          "goes under), letter pairs meeting (AB on AB); tape across", False),
         ("grey ticks along the top and left of what a sheet keeps: world coordinates in mm "
          "(e.g. 'x 150'), to place the sheets", False),
-        (f"arrows 'world {axis_name(frame.u_axis) or 'u'}', 'world "
-         f"{axis_name(frame.v_axis) or 'v'}': the world axes along the paper's right and up",
-         False),
+        ("arrows '{}', '{}': the world axes along the paper's right and up".format(
+            *(f"world {a}" for a in page_axes(frame))), False),
         ("black squares in the corners: marks for verify-print; keep them", False),
     ]
     ly = sq_y + 30.0

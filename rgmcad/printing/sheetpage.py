@@ -75,9 +75,15 @@ def _arrow(pdf, tail, tip, width=0.3):
     pdf.c.drawPath(p, stroke=0, fill=1)
 
 
+def page_axes(frame: PlaneFrame) -> tuple[str, str]:
+    """The world axes along the page's right and up (``"+x"``, ``"+y"``), or ``"u"``,
+    ``"v"`` where the plane is not aligned with them."""
+    return axis_name(frame.u_axis) or "u", axis_name(frame.v_axis) or "v"
+
+
 def orientation_arrows(pdf, x: float, y_down: float, frame: PlaneFrame):
     """Arrows along the page's right and up, named by the world axes they run along."""
-    u, v = axis_name(frame.u_axis) or "u", axis_name(frame.v_axis) or "v"
+    u, v = page_axes(frame)
     _arrow(pdf, (x, y_down), (x + 12.0, y_down))
     _arrow(pdf, (x, y_down), (x, y_down - 12.0))
     pdf.text(x + 13.0, y_down + 0.8, f"world {u}", 2.2, bold=True)

@@ -18,8 +18,8 @@ from rgmcad.scene.perturbation import PhysicsRanges
 
 __all__ = ["REPORT_FILE", "SLICE_PLOT", "PROGRESS_PLOT", "ROBUSTNESS_PLOT", "ERROR_GRID",
            "RANGE_END", "RANGE_END_NOTE", "PARTS_MEET", "placement_lines", "tolerance_notes",
-           "count_line", "range_end_marks", "report_markdown", "plot_slice", "plot_progress",
-           "plot_robustness", "predicted_robustness", "user_scale"]
+           "tolerance_paragraphs", "count_line", "range_end_marks", "report_markdown",
+           "plot_slice", "plot_progress", "plot_robustness", "predicted_robustness", "user_scale"]
 
 REPORT_FILE = "report.md"
 SLICE_PLOT = "probability_slice.png"
@@ -65,6 +65,11 @@ def range_end_marks(s: dict, name: str) -> tuple[str, str]:
 ROUGH_MODEL = 0.5
 """A layout that succeeded in simulation but that the model rates below this: the model is
 rough there, and so are the tolerances it gives."""
+
+
+def tolerance_paragraphs(s: dict) -> list[str]:
+    """:func:`tolerance_notes` as sentences of their own (report.md, report.html)."""
+    return [note[0].upper() + note[1:] for note in tolerance_notes(s)]
 
 
 def tolerance_notes(s: dict) -> list[str]:
@@ -136,8 +141,8 @@ def report_markdown(scenario, s: dict, low, high) -> str:
         lines.append(f"| {f.name} | {s['values'][f.name] * k:.2f} {unit} | {down * k:.2f}"
                      f"{low_end} | {up * k:.2f}{high_end} | [{low[j] * k:.2f}, "
                      f"{high[j] * k:.2f}] |")
-    for note in tolerance_notes(s):
-        lines += ["", note[0].upper() + note[1:]]
+    for paragraph in tolerance_paragraphs(s):
+        lines += ["", paragraph]
     if s.get("verification"):
         lines += ["", "## Choice of the layout", "",
                   "Each candidate succeeded in simulation; then it was simulated at "

@@ -18,6 +18,7 @@ import json
 import shutil
 import time
 from collections.abc import Callable, Mapping, Sequence
+from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -199,61 +200,69 @@ def optimize_scenario(
     run_dir = run_dir.with_name(run_dir.name + tag) if tag and not given else run_dir
     problem = ScenarioProblem(scenario_path, build_dir, parts_dir) if start_vectors else None
     check_starts_valid(problem, start_vectors)  # before any simulation
+    with (_no_folder_if_refused(run_dir),  # closes the store before removing the folder
+          RunStore(run_dir, identity, dimension=len(scenario.free),
+                   events=list(scenario.events)) as store):
+        summary = store.read_result()  # None unless finished, with its model intact
+        if summary is not None and _readable_json(run_dir / LAYOUT_FILE):
+            return OptimizationRun(run_dir, _placed_in(summary, run_dir), True,
+                                   time.perf_counter() - start)
+        from rgmcad.learning import NoValidLayoutError, learn_and_optimize
+        from rgmcad.learning.parallel import jobs_on
+
+        problem = problem or ScenarioProblem(scenario_path, build_dir, parts_dir)
+        executor = make_executor(workers, problem.context, scheduler=scheduler_from_env(scheduler),
+                                 payload=problem.payload)
+        try:
+            learner_problem = recorded(problem, store, executor, progress.simulated)
+            if physics_noise is not None:
+                learner_problem.physics_noise = (physics_noise, seed)
+            if physics_corners is not None:
+                learner_problem.physics_worlds = corner_worlds(physics_corners)
+            # The pool is idle while the models train: their grid searches, calibration folds
+            # and mutual information estimates run there (never changing the result).
+            with jobs_on(executor):
+                try:
+                    result = learn_and_optimize(
+                        learner_problem, settings, seed,
+                        on_progress=lambda p: progress.stage(p.stage),
+                        starts=np.vstack(list(start_vectors.values())) if start_vectors else None)
+                except NoValidLayoutError as exc:
+                    raise ScenarioError(
+                        scenario_path, "free", f"{exc} (parts overlap in every one): expected "
+                        "free ranges where the parts can stand apart; `rgmcad simulate "
+                        f"{scenario_path} --vector {','.join(['0.5'] * len(scenario.free))}` "
+                        "shows which overlap in the middle of the ranges") from None
+            progress.stage("verification")
+            with jobs_on(executor):  # the second look fits the models again
+                chosen = choose_layout(learner_problem, result, start_vectors, seed,
+                                       on_stage=progress.stage)
+            robustness = None
+            if robustness_samples:
+                from rgmcad.runs.robustness import figures, robustness_on
+
+                progress.stage("robustness")
+                curve = robustness_on(executor, np.asarray(chosen["x"], dtype=float),
+                                      learner_problem.validity, robustness_samples, seed,
+                                      physics, progress)
+                robustness = {"samples_per_radius": robustness_samples,
+                              **figures(curve, physics)}
+        finally:
+            executor.close()
+        summary = _write_outputs(scenario, store, learner_problem, result, chosen,
+                                 time.perf_counter() - start, seed, budget, robustness,
+                                 start_vectors)
+    return OptimizationRun(run_dir, summary, False, time.perf_counter() - start)
+
+
+@contextmanager
+def _no_folder_if_refused(run_dir: Path):
+    """A run refused before any simulation (a :class:`ScenarioError`) leaves no run
+    directory behind, unless the directory was there before."""
     fresh = not run_dir.exists()
     try:
-        with RunStore(run_dir, identity, dimension=len(scenario.free),
-                      events=list(scenario.events)) as store:
-            summary = store.read_result()  # None unless finished, with its model intact
-            if summary is not None and _readable_json(run_dir / LAYOUT_FILE):
-                return OptimizationRun(run_dir, _placed_in(summary, run_dir), True,
-                                       time.perf_counter() - start)
-            from rgmcad.learning import NoValidLayoutError, learn_and_optimize
-            from rgmcad.learning.parallel import jobs_on
-
-            problem = problem or ScenarioProblem(scenario_path, build_dir, parts_dir)
-            executor = make_executor(workers, problem.context, scheduler=scheduler_from_env(scheduler),
-                                     payload=problem.payload)
-            try:
-                learner_problem = recorded(problem, store, executor, progress.simulated)
-                if physics_noise is not None:
-                    learner_problem.physics_noise = (physics_noise, seed)
-                if physics_corners is not None:
-                    learner_problem.physics_worlds = corner_worlds(physics_corners)
-                # The pool is idle while the models train: their grid searches, calibration folds
-                # and mutual information estimates run there (never changing the result).
-                with jobs_on(executor):
-                    try:
-                        result = learn_and_optimize(
-                            learner_problem, settings, seed,
-                            on_progress=lambda p: progress.stage(p.stage),
-                            starts=np.vstack(list(start_vectors.values())) if start_vectors else None)
-                    except NoValidLayoutError as exc:
-                        raise ScenarioError(
-                            scenario_path, "free", f"{exc} (parts overlap in every one): expected "
-                            "free ranges where the parts can stand apart; `rgmcad simulate "
-                            f"{scenario_path} --vector {','.join(['0.5'] * len(scenario.free))}` "
-                            "shows which overlap in the middle of the ranges") from None
-                progress.stage("verification")
-                with jobs_on(executor):  # the second look fits the models again
-                    chosen = choose_layout(learner_problem, result, start_vectors, seed,
-                                           on_stage=progress.stage)
-                robustness = None
-                if robustness_samples:
-                    from rgmcad.runs.robustness import figures, robustness_on
-
-                    progress.stage("robustness")
-                    curve = robustness_on(executor, np.asarray(chosen["x"], dtype=float),
-                                          learner_problem.validity, robustness_samples, seed,
-                                          physics, progress)
-                    robustness = {"samples_per_radius": robustness_samples,
-                                  **figures(curve, physics)}
-            finally:
-                executor.close()
-            summary = _write_outputs(scenario, store, learner_problem, result, chosen,
-                                     time.perf_counter() - start, seed, budget, robustness,
-                                     start_vectors)
-        return OptimizationRun(run_dir, summary, False, time.perf_counter() - start)
-    except ScenarioError:  # refused before any simulation: leave no run directory behind
+        yield
+    except ScenarioError:
         journal = run_dir / SIMULATIONS
         if fresh and journal.is_file() and journal.stat().st_size == 0:
             shutil.rmtree(run_dir, ignore_errors=True)

@@ -54,9 +54,9 @@ def replay_section(payload: dict) -> str:
                          "</span>")
         label = {"success": "succeeds", "failure": "fails"}.get(e["state"], "never resolves")
         clock = "" if e["time"] is None else f" at {e['time']:.3f} s"
-        joined = (" or " if e.get("join") == "any" else ", ").join(e["after"])
-        after = (f' <span class="after">after {"the first of " if e.get("join") == "any" else ""}'
-                 f'{escape(joined)}</span>' if e["after"] else "")
+        parents = (f"the first of {' or '.join(e['after'])}" if e.get("join") == "any"
+                   else ", ".join(e["after"]))
+        after = f' <span class="after">after {escape(parents)}</span>' if e["after"] else ""
         items.append(f'<li {attrs} title="{escape(e.get("description") or "")}">'
                      f'<span class="when">{label}{clock}</span><code>{name}</code>{after}</li>')
     speeds = "".join(f'<button class="speed{" on" if s == 1.0 else ""}" data-speed="{s}">'

@@ -19,7 +19,7 @@ from rgmcad.runs.report import (
     ROBUSTNESS_PLOT,
     SLICE_PLOT,
     range_end_marks,
-    tolerance_notes,
+    tolerance_paragraphs,
     user_scale,
 )
 from rgmcad.runs.store import RESULT
@@ -147,7 +147,7 @@ def _placement(scenario, s: dict, low, high) -> str:
                     f"{' (tight)' if tight else ''}</td><td>{s['values'][f.name] * k:.2f} "
                     f"{unit}</td><td>&minus;{down:.2f}{low_end}</td><td>+{up:.2f}{high_end}</td>"
                     f"<td>{low[j] * k:.2f} to {high[j] * k:.2f}</td></tr>")
-    note = "".join(f"<p>{escape(n[0].upper() + n[1:])}</p>" for n in tolerance_notes(s))
+    note = "".join(f"<p>{escape(n)}</p>" for n in tolerance_paragraphs(s))
     return ("<h2>Placement tolerances</h2><p>How far each part may be misplaced, one "
             "parameter at a time, before the predicted success drops below 90 % of its value "
             f"here. Highlighted: tight ones (under {TIGHT_MM:g} mm or {TIGHT_DEG:g} degrees on "
