@@ -61,6 +61,23 @@ def _solids(scenario, scene: Scene) -> dict[str, object]:
     return out
 
 
+GLB_DEFLECTION_M = 1e-4
+"""Largest distance between a GLB's triangles and the exact surface (0.1 mm)."""
+
+GLB_ANGLE_RAD = 0.2
+"""Largest angle between neighbouring triangles of a curved GLB surface."""
+
+
+def _mesh(solids) -> None:
+    """Triangulate each distinct solid to :data:`GLB_DEFLECTION_M`, an absolute distance.
+    (CadQuery's own tolerance is relative to each face's size: 1e-4 of it made a 20 mm ball
+    100,520 triangles and took 2.9 s; 0.1 mm takes about 2,000.)"""
+    from OCP.BRepMesh import BRepMesh_IncrementalMesh
+
+    for solid in {id(s): s for s in solids}.values():
+        BRepMesh_IncrementalMesh(solid.wrapped, GLB_DEFLECTION_M, False, GLB_ANGLE_RAD, True)
+
+
 def export_layout(scenario, scene: Scene, path: Path) -> Path:
     """Write ``scene`` (a posed layout of ``scenario``) as one assembly to ``path``: STEP in
     millimetres for ``.step``/``.stp``, glTF binary (metres, as glTF wants) for ``.glb``.
@@ -75,13 +92,17 @@ def export_layout(scenario, scene: Scene, path: Path) -> Path:
         raise ValueError(f"{path}: expected one of {', '.join(EXPORT_SUFFIXES)}")
     # a name with a space: no part can have it (a part named like the scenario, teapot)
     assembly = cq.Assembly(name=f"{scenario.name} layout")
-    for name, solid in _solids(scenario, scene).items():
+    solids = _solids(scenario, scene)
+    for name, solid in solids.items():
         body = scene.bodies[name]
         colour = cq.Color(*(_STATIC if body.static else _MOVING))
         assembly.add(solid, name=name, loc=_location(body.pose), color=colour)
     partial = path.with_name(f".{path.stem}.partial{suffix}")  # renamed when complete
     if suffix == ".glb":
-        assembly.export(str(partial), tolerance=1e-4, angularTolerance=0.2)
+        _mesh(solids.values())
+        # the solids keep that triangulation: CadQuery meshes again only where the existing one
+        # is coarser than asked, and its tolerance is relative to each face's size
+        assembly.export(str(partial), tolerance=1.0, angularTolerance=1.0)
     else:
         assembly.export(str(partial), exportType="STEP", unit="M", outputUnit="MM")
     os.replace(partial, path)
