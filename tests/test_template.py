@@ -475,6 +475,34 @@ def test_svg_in_mm_with_the_pdf_geometry(layout):
         assert np.linalg.norm(svg_centroid - world_to_drawing(kind, expected[part.name])) < 0.05
 
 
+def test_a_part_placed_from_the_svg_header_alone_lands_on_its_outline(layout):
+    # as a user reads the file: the <desc> says where world points are in SVG units
+    (result, _, expected), kind = layout
+    root = ET.parse(result.svg).getroot()
+    desc = root.find("{http://www.w3.org/2000/svg}desc").text
+    got = re.search(r"SVG x = u ([+-]) ([\d.]+), y = ([\d.]+) - v; u runs along world "
+                    r"([+-][xyz]) and v along world ([+-][xyz]), from the world point "
+                    r"\(([^)]*)\) mm", desc)
+    assert got, desc
+    sign, shift, top, u_axis, v_axis, origin = got.groups()
+    origin = np.array([float(c) for c in origin.split(",")])
+
+    def along(axis, world_mm):
+        return (1 if axis[0] == "+" else -1) * (world_mm - origin)["xyz".index(axis[1])]
+
+    ns = {"s": "http://www.w3.org/2000/svg"}
+    for k, part in enumerate(result.parts, start=1):
+        a, b = expected[part.name]  # world (x, y) on the floor, (x, z) on the board
+        world = np.array([a, b, 0.0] if kind == "floor" else [a, 0.0, b]) * 1000
+        u, v = along(u_axis, world), along(v_axis, world)
+        x, y = u + (float(shift) if sign == "+" else -float(shift)), float(top) - v
+        rings = _svg_rings(root.find(f".//s:path[@id='part-{k}']", ns).get("d"))
+        geom = Polygon(rings[0])
+        for r in rings[1:]:
+            geom = geom.symmetric_difference(Polygon(r))
+        assert np.linalg.norm(np.array(geom.centroid.coords[0]) - [x, y]) < 0.05, part.name
+
+
 def test_notes_heights_tilts_and_tolerances(floor, board):
     for result, _, _ in (floor, board):
         text = ""

@@ -6,6 +6,7 @@ import base64
 import json
 import re
 import time
+from pathlib import Path
 from dataclasses import replace
 
 import numpy as np
@@ -21,6 +22,7 @@ from rgmcad.viewer.page import write_replay_html
 from rgmcad.viewer.recording import record_replay, replay_payload
 from tests._support import PARTS
 
+ROOT = Path(__file__).resolve().parent.parent
 SIMPLE = "scenarios/simple.toml"
 SWITCH = "scenarios/causality_switch.toml"
 
@@ -186,6 +188,36 @@ def test_the_report_links_the_template_once_it_is_made(optimized, capsys):
     main(["optimize", SIMPLE, "--budget", "small", "--run", str(run), "--workers", "1"])
     capsys.readouterr()
     assert 'href="template/template.pdf"' in (run / "report.html").read_text()
+
+
+def test_the_report_s_template_command_works_pasted_anywhere(optimized, tmp_path, monkeypatch):
+    # a user's own scenario (not shipped, so its name alone finds nothing), a relative run
+    # directory, and the command pasted in another folder
+    import html
+    import shlex
+    import shutil
+
+    from rgmcad.viewer.report import write_run_report
+
+    run, _ = optimized
+    mine = tmp_path / "my machine" / "marble.toml"
+    mine.parent.mkdir()
+    mine.write_text((ROOT / SIMPLE).read_text().replace('name = "simple"', 'name = "marble"', 1))
+    monkeypatch.chdir(tmp_path)
+    shutil.copytree(run, "copy", ignore=shutil.ignore_patterns("template"))  # none made yet
+    result = json.loads(Path("copy/result.json").read_text())
+    result["layout"] = "copy/layout.json"
+    Path("copy/result.json").write_text(json.dumps(result))
+    layout = json.loads(Path("copy/layout.json").read_text())
+    Path("copy/layout.json").write_text(json.dumps({**layout, "scenario": "marble"}))
+    page = write_run_report(Path("copy"), Path("my machine/marble.toml")).read_text()
+    command = shlex.split(html.unescape(re.search(r"<pre>(rgmcad template .*?)</pre>",
+                                                  page).group(1)))
+    elsewhere = tmp_path / "elsewhere"
+    elsewhere.mkdir()
+    monkeypatch.chdir(elsewhere)
+    assert main(command[1:]) == 0
+    assert (tmp_path / "copy" / "template" / "template.pdf").is_file()
 
 
 def test_tight_tolerances_are_highlighted(optimized):

@@ -1,6 +1,7 @@
 """The template's SVG: the whole drawing at 1:1, user units millimetres, one file.
 
-SVG ``x = u - u0`` and ``y = v1 - v`` for the drawing's extent ``(u0, v0, u1, v1)``.
+SVG ``x = u - u0`` and ``y = v1 - v`` for the drawing's extent ``(u0, v0, u1, v1)``; the
+file's ``<desc>`` says so with the numbers, and how ``(u, v)`` lie in the world.
 """
 
 from __future__ import annotations
@@ -8,15 +9,42 @@ from __future__ import annotations
 from pathlib import Path
 from xml.sax.saxutils import escape, quoteattr
 
+import numpy as np
+
 from rgmcad.printing.drawing import Drawing, TextItem
+from rgmcad.printing.plane import PlaneFrame
 
 
 def _hex(rgb) -> str:
     return "#" + "".join(f"{round(255 * c):02x}" for c in rgb)
 
 
-def write_svg(path: Path, drawing: Drawing, title: str) -> None:
-    """Write ``drawing`` to ``path`` as SVG, titled ``title``."""
+def _axis(direction) -> str:
+    """A world direction in words: ``+x`` for an axis, else its components."""
+    d = np.asarray(direction, float)
+    k = int(np.argmax(np.abs(d)))
+    if abs(abs(d[k]) - 1.0) < 1e-9:
+        return f"{'+' if d[k] > 0 else '-'}{'xyz'[k]}"
+    return "(" + ", ".join(f"{c:.4f}" for c in d) + ")"
+
+
+def _plus(value: float) -> str:
+    """``+ 3.000`` or ``- 3.000``: a term added, its sign folded in."""
+    return f"{'-' if value < 0 else '+'} {abs(value):.3f}"
+
+
+def coordinates_note(drawing: Drawing, frame: PlaneFrame) -> str:
+    """How SVG user units relate to the template plane and the world, in one sentence."""
+    u0, _, _, v1 = drawing.extent
+    origin = ", ".join(f"{1000 * c:.1f}" for c in frame.origin)
+    return (f"1:1, user units are millimetres. A point at drawing millimetres (u, v) is at "
+            f"SVG x = u {_plus(-u0)}, y = {v1:.3f} - v; u runs along world "
+            f"{_axis(frame.u_axis)} and v along world {_axis(frame.v_axis)}, from the world "
+            f"point ({origin}) mm.")
+
+
+def write_svg(path: Path, drawing: Drawing, title: str, frame: PlaneFrame) -> None:
+    """Write ``drawing`` (in the plane ``frame``) to ``path`` as SVG, titled ``title``."""
     u0, v0, u1, v1 = drawing.extent
     w, h = u1 - u0, v1 - v0
 
@@ -28,8 +56,7 @@ def write_svg(path: Path, drawing: Drawing, title: str) -> None:
         f'<svg xmlns="http://www.w3.org/2000/svg" width="{w:.4f}mm" height="{h:.4f}mm" '
         f'viewBox="0 0 {w:.4f} {h:.4f}">',
         f"<title>{escape(title or 'rgmcad assembly template')}</title>",
-        f"<desc>1:1, user units are millimetres; drawing u = x + {u0:.4f}, "
-        f"v = {v1:.4f} - y</desc>",
+        f"<desc>{escape(coordinates_note(drawing, frame))}</desc>",
     ]
     for it in drawing.items:
         if isinstance(it, TextItem):

@@ -166,7 +166,7 @@ def make_template(parts, base_planes, out_dir, *, plane: str | None = None,
     pdf_path, svg_path = out_dir / "template.pdf", out_dir / "template.svg"
     n_pages = write_pdf(pdf_path, title, drawing, outlines, frame, map_info, sheets,
                         (cols, rows), paper, orientation, overlap_mm)
-    write_svg(svg_path, drawing, title)
+    write_svg(svg_path, drawing, title, frame)
 
     centres = {"map": dict(map_info.tag_centres_mm)}
     centres.update({s.label: dict(s.tag_centres_mm) for s in sheets})

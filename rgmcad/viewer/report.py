@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import base64
 import json
+import shlex
 from html import escape
 from pathlib import Path
 
@@ -73,7 +74,7 @@ def write_run_report(run_dir: str | Path, scenario_path: str | Path, *,
             replay_section(payload) if payload else
             "<p>The layout is invalid (its parts overlap), so there is nothing to replay.</p>",
             _events(summary, result), _placement(scenario, summary, low, high),
-            _figures(run_dir), _template(run_dir, scenario, summary)]
+            _figures(run_dir), _template(run_dir, _scenario_argument(scenario_path), summary)]
     path = run_dir / REPORT_HTML
     path.write_text(html_page(title, "\n".join(body), payload), encoding="utf-8")
     return path
@@ -168,14 +169,25 @@ def _figures(run_dir: Path) -> str:
     return f'<h2>Figures</h2><div class="figures">{"".join(out)}</div>' if out else ""
 
 
-def _template(run_dir: Path, scenario, s: dict) -> str:
+def _scenario_argument(scenario_path: str | Path) -> str:
+    """The scenario as a command pasted anywhere finds it: a file by its absolute path, a
+    shipped scenario by its name."""
+    given = Path(scenario_path)
+    return str(given.resolve()) if given.is_file() else str(scenario_path)
+
+
+def _absolute(path: str) -> str:
+    return str(Path(path).resolve()) if Path(path).exists() else path
+
+
+def _template(run_dir: Path, scenario_argument: str, s: dict) -> str:
     for name in TEMPLATE_FILES:
         if (run_dir / name).is_file():
             return (f'<h2>Printable template</h2><p><a href="{escape(name)}">{escape(name)}</a>: '
                     "print it at 100 %, tape the sheets together and place each part on its "
                     "outline.</p>")
+    command = shlex.join(["rgmcad", "template", scenario_argument, "--layout",
+                          _absolute(s["layout"]), "--out", str(run_dir.resolve() / "template")])
     return ("<h2>Printable template</h2><p>None yet. Make one beside this report (it is then "
             "linked here the next time the report is written, e.g. by the same "
-            "<code>rgmcad optimize</code> command):</p><pre>rgmcad template "
-            f"{escape(scenario.name)} --layout {escape(s['layout'])} --out "
-            f"{escape(str(run_dir / 'template'))}</pre>")
+            f"<code>rgmcad optimize</code> command):</p><pre>{escape(command)}</pre>")
