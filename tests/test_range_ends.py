@@ -5,6 +5,7 @@ summary, report.md, report.html, the printed template) and tells them what it me
 from __future__ import annotations
 
 import json
+import math
 from pathlib import Path
 
 import numpy as np
@@ -12,6 +13,11 @@ import numpy as np
 from rgmcad.learning import range_ends
 from rgmcad.runs.report import ROUGH_MODEL, tolerance_notes
 from tests._support import cli_output
+
+
+def _down(v: float) -> str:
+    """A tolerance as printed: rounded down to 0.1 (the number read stays inside the bound)."""
+    return f"{math.floor(v * 10 + 1e-6) / 10:.1f}"
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -45,11 +51,11 @@ def test_a_tolerance_stopped_by_the_range_is_marked_and_the_user_told_to_widen_i
     assert abs(roll - down - 15.0) < 1e-9
     assert (abs(roll + up - 75.0) < 1e-9) == (summary["range_ends"]["track.roll"] == "both")
     line = next(ln for ln in out.splitlines() if ln.strip().startswith("track.roll"))
-    assert f"-{down:.2f} (end of range) /" in line
+    assert f"-{_down(down)} (end of range) /" in line
     assert "note: a tolerance marked 'end of range'" in out and "widen that range" in out
     for name in ("report.md", "report.html"):
         text = (run / name).read_text()
-        assert f"{down:.2f} (end of range)" in text and "widen that range" in text, name
+        assert f"{_down(down)} (end of range)" in text and "widen that range" in text, name
     # the same run directory shown again (finished): the same words
     code, again, _ = cli_output(["optimize", str(scenario), "--budget", "small", "--run",
                                  str(run), "-q"])
@@ -78,10 +84,10 @@ def test_a_tolerance_stops_where_parts_would_meet_and_says_so(tmp_path):
     assert 0.0297 <= x - down <= 0.0305 and 0.2095 <= x + up <= 0.2103, (x - down, x + up)
     assert summary["overlap_ends"] == {"crate.x": "both"}
     line = next(ln for ln in out.splitlines() if ln.strip().startswith("crate.x"))
-    assert f"-{down * 1000:.2f} (parts meet) / +{up * 1000:.2f} (parts meet)" in line
+    assert f"-{_down(down * 1000)} (parts meet) / +{_down(up * 1000)} (parts meet)" in line
     assert "note: a tolerance marked 'parts meet'" in out
     for name in ("report.md", "report.html"):
-        assert f"{up * 1000:.2f} (parts meet)" in (run / name).read_text(), name
+        assert f"{_down(up * 1000)} (parts meet)" in (run / name).read_text(), name
     layout = str(run / "layout.json")
     for to, code_expected, word in ((x + up - 0.0005, 0, "success"), (x + up + 0.0005, 1,
                                     "invalid"), (x - down + 0.0005, 0, "success"),
@@ -94,7 +100,8 @@ def test_a_tolerance_stops_where_parts_would_meet_and_says_so(tmp_path):
                                str(tmp_path / "tpl"), "-q"])
     assert code == 0, err
     svg = (tmp_path / "tpl" / "template.svg").read_text()
-    assert f"x -{down * 1000:.1f}/+{up * 1000:.1f} mm" in svg and "not limiting" not in svg
+    mm = [_down(t * 1000).rstrip("0").rstrip(".") for t in (down, up)]
+    assert f"x -{mm[0]}/+{mm[1]} mm" in svg and "not limiting" not in svg
 
 
 def test_tolerances_of_a_rough_model_come_with_a_caution():

@@ -6,8 +6,8 @@ import base64
 import json
 import re
 import time
-from pathlib import Path
 from dataclasses import replace
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -175,7 +175,7 @@ def test_optimize_writes_a_report_page(optimized):
     for f in scenario.free:  # every parameter in mm or degrees
         unit = "deg" if f.unit == "deg" else "mm"
         k = 1.0 if unit == "deg" else 1000.0
-        assert f"{summary['values'][f.name] * k:.2f} {unit}" in text
+        assert f"{summary['values'][f.name] * k:.1f} {unit}" in text
     assert text.count("data:image/png;base64,") == 3  # slice, robustness, history
     assert 'href="layout.json"' in text
 

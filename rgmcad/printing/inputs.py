@@ -34,6 +34,7 @@ an angle also as the millimetres it moves the frame's farthest part.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -100,9 +101,12 @@ class BasePlane:
 # --- tolerances -----------------------------------------------------------------------------------
 
 
-def _number(v: float) -> str:
-    s = f"{v:.1f}" if v >= 1.0 else f"{v:.2g}"
-    return s.rstrip("0").rstrip(".") if "." in s else s
+def _number(v: float, down: bool = True) -> str:
+    """Millimetres or degrees as a maker reads them: to 0.1 (rounded down, as a tolerance
+    must be, unless ``down`` is False), no trailing zeros, never in scientific notation
+    (``6.1e-05`` was printed for a side with no room)."""
+    v = math.floor(abs(v) * 10 + 1e-6) / 10 if down else abs(v)
+    return f"{v:.1f}".rstrip("0").rstrip(".")
 
 
 def format_tolerance(label: str, component: str, down: float, up: float,
@@ -120,6 +124,12 @@ def format_tolerance(label: str, component: str, down: float, up: float,
     if all(free):
         return f"{label}: not limiting within the range"
     d, u = _number(down * factor), _number(up * factor)
+    if d == u == "0":
+        return f"{label}: exactly (no room either way)"
+    if d == "0" and not free[1]:
+        return f"{label} +{u}{unit}, not below"
+    if u == "0" and not free[0]:
+        return f"{label} -{d}{unit}, not above"
     if free[0]:
         return f"{label} +{u}{unit} (below: not limiting within the range)"
     if free[1]:
@@ -181,7 +191,7 @@ def frame_notes(scenario, scene, tolerances, rooms=None) -> list[FrameNote]:
                 reach = float(np.max(np.linalg.norm(d - np.outer(d @ axis, axis), axis=1)))
                 mm = [_number(1000.0 * reach * np.radians(t)) for t in (down, up)]
                 size = f"± {mm[0]}" if mm[0] == mm[1] else f"-{mm[0]}/+{mm[1]}"
-                text = (f"turn {size} mm at its far end, {_number(1000 * reach)} mm from its "
+                text = (f"turn {size} mm at its far end, {_number(1000 * reach, down=False)} mm from its "
                         f"origin ({text})")
             notes.append(text)
         out.append(FrameNote(name, pose[:3, 3].copy(), tuple(notes)))

@@ -9,6 +9,7 @@ progress. :mod:`rgmcad.runs.workflow` writes them into the run directory; the HT
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 import numpy as np
@@ -17,7 +18,8 @@ from rgmcad.runs.robustness import close_in_warning, failures_line, two_rates
 from rgmcad.scene.perturbation import PhysicsRanges
 
 __all__ = ["REPORT_FILE", "SLICE_PLOT", "PROGRESS_PLOT", "ROBUSTNESS_PLOT", "ERROR_GRID",
-           "RANGE_END", "RANGE_END_NOTE", "PARTS_MEET", "placement_lines", "tolerance_notes",
+           "RANGE_END", "RANGE_END_NOTE", "PARTS_MEET", "tolerance_text", "placement_lines",
+           "tolerance_notes",
            "tolerance_paragraphs", "count_line", "range_end_marks", "report_markdown",
            "plot_slice", "plot_progress", "plot_robustness", "predicted_robustness", "user_scale"]
 
@@ -28,6 +30,12 @@ ROBUSTNESS_PLOT = "robustness.png"
 ERROR_GRID = np.linspace(0.0, 10.0, 21)
 """Standard deviations of the placement errors of :func:`predicted_robustness`: mm for
 positions, degrees for angles."""
+
+
+def tolerance_text(value: float) -> str:
+    """A tolerance in mm or degrees as printed: rounded *down* to 0.1, so that the number a
+    maker reads is inside what was checked (5.98 reads 5.9, never 6.0)."""
+    return f"{math.floor(value * 10 + 1e-6) / 10:.1f}"
 
 
 def user_scale(parameter) -> tuple[float, str]:
@@ -48,18 +56,50 @@ PARTS_MEET_NOTE = ("a tolerance marked 'parts meet' stops where moving that para
                    "would make two parts overlap: the layout cannot be built past it.")
 
 
+NARROWED = " (narrowed by simulation)"
+
+
+def narrowed_note(s: dict) -> str:
+    """What NARROWED means, with the model's figures of the sides it marks."""
+    check = s.get("tolerance_check") or {}
+    said = []
+    for name, side in check.get("narrowed", {}).items():
+        k, unit = (1.0, "deg") if name.split(".")[-1] in ("heading", "pitch", "roll") else (
+            1000.0, "mm")
+        down, up = check["model_tolerances"][name]
+        said += [f"{name} {sign}{t * k:.1f} {unit}" for sign, t, here in (
+            ("-", down, "low"), ("+", up, "high")) if side in (here, "both")]
+    return ("a tolerance marked 'narrowed by simulation' is where the model was too generous "
+            f"(it said {', '.join(said)}): the layout failed in simulation inside that bound, "
+            "so the side stops where it still succeeded.")
+
+
 def range_end_marks(s: dict, name: str) -> tuple[str, str]:
     """The marks of a parameter's tolerance down and up in a run's summary: RANGE_END on a
     side whose tolerance reaches the end of the range (``range_ends``), PARTS_MEET on one
-    that stops where parts would overlap (``overlap_ends``), else ""."""
+    that stops where parts would overlap (``overlap_ends``), NARROWED on one the simulations
+    of the tolerance check narrowed, else ""."""
     marks = []
+    narrowed = (s.get("tolerance_check") or {}).get("narrowed", {})
     for side in ("low", "high"):
-        # both absent from runs made before them
+        # all absent from runs made before them
         ends = {key: s.get(key, {}).get(name) in (side, "both")
                 for key in ("range_ends", "overlap_ends")}
         marks.append(RANGE_END if ends["range_ends"] else
-                     PARTS_MEET if ends["overlap_ends"] else "")
+                     PARTS_MEET if ends["overlap_ends"] else
+                     NARROWED if narrowed.get(name) in (side, "both") else "")
     return marks[0], marks[1]
+
+
+def tolerance_header(s: dict) -> str:
+    """How the tolerances were found: the model's alone, or checked by simulation."""
+    check = s.get("tolerance_check")
+    if not check:
+        return ("placement tolerances (down / up), as the model predicts them (one parameter "
+                "moved alone; `rgmcad simulate ... --value NAME=V` tries one)")
+    return (f"placement tolerances (down / up), one parameter moved alone: the model's, each "
+            f"side then simulated at {check['points_per_side']} places up to its bound (its "
+            f"bound included; {check['simulations']} simulations), and narrowed where one failed")
 
 
 ROUGH_MODEL = 0.5
@@ -76,12 +116,14 @@ def tolerance_notes(s: dict) -> list[str]:
     """The notes under a run's tolerances: what the marks of :func:`range_end_marks` mean,
     and a caution when the model itself is too rough to give them."""
     notes = ([RANGE_END_NOTE] if s.get("range_ends") else []) + (
-        [PARTS_MEET_NOTE] if s.get("overlap_ends") else [])
+        [PARTS_MEET_NOTE] if s.get("overlap_ends") else []) + (
+        [narrowed_note(s)] if (s.get("tolerance_check") or {}).get("narrowed") else [])
     if s.get("verified") and s["probability"] < ROUGH_MODEL:
         notes.append(
             f"the model rates this layout's success at {s['probability']:.2f}, though it "
             "succeeded when simulated: the model is rough here, and so are these tolerances "
-            "(they are the model's); `rgmcad evaluate` measures the layout by simulation"
+            "(each side was simulated at its bound, but between the places checked only the "
+            "model speaks); `rgmcad evaluate` measures the layout by simulation"
             + (", and the default budget learns a finer model" if s.get("budget") == "small"
                else "") + ".")
     return notes
@@ -89,14 +131,13 @@ def tolerance_notes(s: dict) -> list[str]:
 
 def placement_lines(s: dict) -> list[str]:
     """A run's placement tolerances as ``rgmcad optimize`` prints them (mm and degrees)."""
-    lines = ["placement tolerances (down / up), as the model predicts them (one parameter "
-             "moved alone; `rgmcad simulate ... --value NAME=V` tries one):"]
+    lines = [tolerance_header(s) + ":"]
     for name, (down, up) in s["tolerances"].items():
         angle = name.split(".")[-1] in ("heading", "pitch", "roll")
         k, unit = (1.0, "deg") if angle else (1000.0, "mm")
         low_end, high_end = range_end_marks(s, name)
-        lines.append(f"  {name:24s} {s['values'][name] * k:9.2f} {unit:3s}  "
-                     f"-{down * k:.2f}{low_end} / +{up * k:.2f}{high_end}")
+        lines.append(f"  {name:24s} {s['values'][name] * k:8.1f} {unit:3s}  "
+                     f"-{tolerance_text(down * k)}{low_end} / +{tolerance_text(up * k)}{high_end}")
     lines += [f"note: {note}" for note in tolerance_notes(s)]
     return lines
 
@@ -131,16 +172,19 @@ def report_markdown(scenario, s: dict, low, high) -> str:
                      f"{', '.join(f.get('dims', [])) or '-'} |")
     lines += ["", "## Placement", "",
               "How far each parameter may move, alone, before the predicted success drops "
-              "below 90 % of its value here (the parameter's whole range is shown for scale).",
+              "below 90 % of its value here (the parameter's whole range is shown for scale)"
+              + (f"; each side then simulated at {check['points_per_side']} places up to its "
+                 "bound, and narrowed where one failed." if (check := s.get("tolerance_check"))
+                 else ": the model's figures, not simulated (the layout did not succeed)."),
               "", "| parameter | value | may move down | may move up | range |",
               "|---|---|---|---|---|"]
     for j, f in enumerate(scenario.free):
         k, unit = user_scale(f)
         down, up = s["tolerances"][f.name]
         low_end, high_end = range_end_marks(s, f.name)
-        lines.append(f"| {f.name} | {s['values'][f.name] * k:.2f} {unit} | {down * k:.2f}"
-                     f"{low_end} | {up * k:.2f}{high_end} | [{low[j] * k:.2f}, "
-                     f"{high[j] * k:.2f}] |")
+        lines.append(f"| {f.name} | {s['values'][f.name] * k:.1f} {unit} | {tolerance_text(down * k)}"
+                     f"{low_end} | {tolerance_text(up * k)}{high_end} | [{low[j] * k:.1f}, "
+                     f"{high[j] * k:.1f}] |")
     for paragraph in tolerance_paragraphs(s):
         lines += ["", paragraph]
     if s.get("verification"):

@@ -48,6 +48,7 @@ from rgmcad.runs.report import (
 )
 from rgmcad.runs.starts import check_starts_valid, choose_layout, resolve_starts, starts_tag
 from rgmcad.runs.store import MODEL, SETTINGS, SIMULATIONS, RecordedProblem, RunStore, run_identity
+from rgmcad.runs.tolerance_check import BISECTIONS, POINTS, check_tolerances
 from rgmcad.scene.perturbation import DEFAULT_PHYSICS, PhysicsRanges, corner_worlds
 from rgmcad.sim.run import Outcome
 
@@ -225,7 +226,8 @@ def optimize_scenario(
                 try:
                     result = learn_and_optimize(
                         learner_problem, settings, seed,
-                        on_progress=lambda p: progress.stage(p.stage),
+                        # the learner's "done" is the run's middle: the choice follows
+                        on_progress=lambda p: p.stage == "done" or progress.stage(p.stage),
                         starts=np.vstack(list(start_vectors.values())) if start_vectors else None)
                 except NoValidLayoutError as exc:
                     raise ScenarioError(
@@ -247,11 +249,19 @@ def optimize_scenario(
                                       physics, progress)
                 robustness = {"samples_per_radius": robustness_samples,
                               **figures(curve, physics)}
+            at_layout = _at_layout(result.model, result, chosen,
+                                   np.asarray(chosen["x"], dtype=float), learner_problem.validity)
+            checked = None
+            if chosen["verified"]:  # tolerances of a layout that fails mean nothing
+                progress.stage("tolerance check")
+                checked = check_tolerances(np.asarray(chosen["x"], dtype=float), at_layout[-1],
+                                           _success_of(learner_problem), _printed_step(scenario))
         finally:
             executor.close()
         summary = _write_outputs(scenario, store, learner_problem, result, chosen,
                                  time.perf_counter() - start, seed, budget, robustness,
-                                 start_vectors)
+                                 start_vectors, at_layout, checked)
+    progress.stage("done")
     return OptimizationRun(run_dir, summary, False, time.perf_counter() - start)
 
 
@@ -311,8 +321,23 @@ def _readable_json(path: Path) -> bool:
         return False
 
 
+def _printed_step(scenario) -> np.ndarray:
+    """(d,) 0.1 mm or 0.1 degree, the resolution tolerances are printed at, normalised."""
+    from rgmcad.scene.design_space import bounds
+
+    low, high = bounds(scenario)
+    return np.array([0.1 if f.unit == "deg" else 1e-4 for f in scenario.free]) / (high - low)
+
+
+def _success_of(recorded):
+    """``(n, d) -> (n,) bool``: whether each layout succeeds, simulated by the run."""
+    def succeeds(P):
+        return np.array([r.outcome is Outcome.SUCCESS for r in recorded.simulate_records(P)])
+    return succeeds
+
+
 def _write_outputs(scenario, store, recorded, result, chosen, wall_time, seed, budget,
-                   robustness=None, starts=None) -> dict:
+                   robustness, starts, at_layout, checked) -> dict:
     from rgmcad.learning import overlap_ends, range_ends
     from rgmcad.scene.design_space import bounds
     from rgmcad.scene.layout_files import layout_document
@@ -322,11 +347,18 @@ def _write_outputs(scenario, store, recorded, result, chosen, wall_time, seed, b
     x = np.asarray(chosen["x"], dtype=float)
     low, high = bounds(scenario)
     validity = recorded.problem.validity  # here, in this process: the pool is closed
-    per_event, probability, weakest, weakest_probability, tol = _at_layout(
-        model, result, chosen, x, validity)
-    tolerances = {f.name: [float(tol[j, 0] * (high[j] - low[j])),
-                           float(tol[j, 1] * (high[j] - low[j]))]
-                  for j, f in enumerate(scenario.free)}
+    per_event, probability, weakest, weakest_probability, model_tol = at_layout
+    tol = model_tol if checked is None else checked.tolerances
+
+    def real(t):
+        return {f.name: [float(t[j, 0] * (high[j] - low[j])), float(t[j, 1] * (high[j] - low[j]))]
+                for j, f in enumerate(scenario.free)}
+
+    tolerances = real(tol)
+    narrowed = (np.zeros((len(x), 2), bool) if checked is None else checked.narrowed)
+    check = None if checked is None else {
+        "points_per_side": POINTS, "halvings": BISECTIONS, "simulations": checked.simulations,
+        "narrowed": _sides(narrowed, scenario), "model_tolerances": real(model_tol)}
     spread = influence(model, x)
     store.save_model(model)
     layout = write_json_atomic(run_dir / LAYOUT_FILE, layout_document(
@@ -353,11 +385,11 @@ def _write_outputs(scenario, store, recorded, result, chosen, wall_time, seed, b
         "weakest_event": weakest,
         "weakest_probability": weakest_probability,
         "tolerances": tolerances,
-        "range_ends": {f.name: end for f, end in zip(scenario.free, range_ends(x, tol),
-                                                      strict=True) if end},
-        "overlap_ends": {f.name: end for f, end in zip(
-            scenario.free, overlap_ends(x, tol, result.settings, validity),
-            strict=True) if end},
+        "tolerance_check": check,
+        # what stops a side the simulations kept: the range, or parts meeting
+        "range_ends": _sides(_flags(range_ends(x, model_tol)) & ~narrowed, scenario),
+        "overlap_ends": _sides(_flags(overlap_ends(x, model_tol, result.settings, validity))
+                               & ~narrowed, scenario),
         "influence": {f.name: float(v) for f, v in zip(scenario.free, spread, strict=True)},
         "verified": chosen["verified"],
         "source": chosen["source"],
@@ -372,8 +404,10 @@ def _write_outputs(scenario, store, recorded, result, chosen, wall_time, seed, b
                          "status": result.optimization.status},
         "simulations": len(stored),
         **({"worlds": len(recorded.physics_worlds)} if recorded.physics_worlds else {}),
-        "evaluations": result.n_total_simulations + chosen["n_simulations"],
-        "simulations_by_stage": {**result.n_simulations, **chosen["by_stage"]},
+        "evaluations": result.n_total_simulations + chosen["n_simulations"]
+        + (checked.simulations if checked else 0),
+        "simulations_by_stage": {**result.n_simulations, **chosen["by_stage"],
+                                 **({"tolerance check": checked.simulations} if checked else {})},
         "exploration": result.exploration_summary(),
         "verification": chosen["candidates"],
         "centering": chosen["centering"], "second_look": chosen["second_look"],
@@ -402,6 +436,17 @@ def _write_outputs(scenario, store, recorded, result, chosen, wall_time, seed, b
     write_atomic(run_dir / REPORT_FILE, report_markdown(scenario, summary, low, high))
     store.write_result(summary)  # last: its presence marks the run finished
     return summary
+
+
+def _flags(sides: list[str | None]) -> np.ndarray:
+    """(d, 2) bool of per-parameter sides ``"low"``, ``"high"``, ``"both"`` or None."""
+    return np.array([[s in ("low", "both"), s in ("high", "both")] for s in sides], bool)
+
+
+def _sides(flags: np.ndarray, scenario) -> dict[str, str]:
+    """``{parameter: "low" | "high" | "both"}`` of the flagged sides of (d, 2) bool."""
+    return {f.name: "both" if lo and hi else "low" if lo else "high"
+            for f, (lo, hi) in zip(scenario.free, flags, strict=True) if lo or hi}
 
 
 def _factor(scenario, result, event) -> dict:

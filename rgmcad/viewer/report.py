@@ -21,6 +21,7 @@ from rgmcad.runs.report import (
     SLICE_PLOT,
     range_end_marks,
     tolerance_paragraphs,
+    tolerance_text,
     user_scale,
 )
 from rgmcad.runs.store import RESULT
@@ -145,14 +146,20 @@ def _placement(scenario, s: dict, low, high) -> str:
         n_tight += tight
         low_end, high_end = range_end_marks(s, f.name)
         rows.append(f'<tr class="{"tight" if tight else ""}"><td><code>{escape(f.name)}</code>'
-                    f"{' (tight)' if tight else ''}</td><td>{s['values'][f.name] * k:.2f} "
-                    f"{unit}</td><td>&minus;{down:.2f}{low_end}</td><td>+{up:.2f}{high_end}</td>"
-                    f"<td>{low[j] * k:.2f} to {high[j] * k:.2f}</td></tr>")
+                    f"{' (tight)' if tight else ''}</td><td>{s['values'][f.name] * k:.1f} "
+                    f"{unit}</td><td>&minus;{tolerance_text(down)}{low_end}</td>"
+                    f"<td>+{tolerance_text(up)}{high_end}</td>"
+                    f"<td>{low[j] * k:.1f} to {high[j] * k:.1f}</td></tr>")
     note = "".join(f"<p>{escape(n)}</p>" for n in tolerance_paragraphs(s))
     return ("<h2>Placement tolerances</h2><p>How far each part may be misplaced, one "
             "parameter at a time, before the predicted success drops below 90 % of its value "
-            f"here. Highlighted: tight ones (under {TIGHT_MM:g} mm or {TIGHT_DEG:g} degrees on "
-            f"a side), {n_tight} of {len(rows)}: place those with care.</p>"
+            "here" + (f"; each side then simulated at {check['points_per_side']} places up to "
+                      "its bound, and narrowed where one failed" if (
+                          check := s.get("tolerance_check")) else
+                      " (the model's figures: the layout did not succeed, nothing was "
+                      "simulated)") + f". Highlighted: tight ones (under {TIGHT_MM:g} mm or "
+            f"{TIGHT_DEG:g} degrees on a side), {n_tight} of {len(rows)}: place those with "
+            "care.</p>"
             "<table><tr><th>parameter</th><th>value</th><th>may move down</th>"
             "<th>may move up</th><th>range</th></tr>" + "".join(rows) + "</table>" + note)
 

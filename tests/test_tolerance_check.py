@@ -1,0 +1,66 @@
+"""Every tolerance ``optimize`` prints holds: a maker moves one parameter by the number on the
+screen and the layout still works in simulation. The law of the check itself on a problem with
+a known answer."""
+
+from __future__ import annotations
+
+import json
+import re
+
+import numpy as np
+import pytest
+
+from rgmcad.runs.tolerance_check import check_tolerances
+from tests._support import cli_output
+
+
+def test_a_side_the_model_got_wrong_is_narrowed_to_where_it_still_succeeds():
+    # success exactly where |x0 - 0.5| <= 0.1 and x1 <= 0.7: the model claims 0.3 on every
+    # side; printed to 0.001 here (the step)
+    def succeeds(P):
+        return (np.abs(P[:, 0] - 0.5) <= 0.1 + 1e-12) & (P[:, 1] <= 0.7 + 1e-12)
+
+    x = np.array([0.5, 0.5])
+    calls = []
+    got = check_tolerances(x, np.full((2, 2), 0.3),
+                           lambda P: calls.append(len(P)) or succeeds(P), step=0.001)
+    t = got.tolerances
+    assert got.narrowed.tolist() == [[True, True], [False, True]]
+    assert t[1, 0] == pytest.approx(0.3)  # simulated at every place, kept
+    for (j, k), edge in (((0, 0), 0.1), ((0, 1), 0.1), ((1, 1), 0.2)):
+        # narrowed: a whole number of steps, succeeding at the bound, within 1/64 of 0.3
+        assert t[j, k] / 0.001 == pytest.approx(round(t[j, k] / 0.001))
+        p = x.copy()
+        p[j] += t[j, k] if k else -t[j, k]
+        assert succeeds(p[None])[0]
+        assert edge - 0.3 / 64 <= t[j, k] <= edge + 1e-12, (j, k, t[j, k])
+    assert got.simulations == sum(calls) == 4 * 4 + 3 * 4
+
+
+def test_no_side_is_checked_where_there_is_no_room():
+    got = check_tolerances(np.array([0.0, 1.0]), np.zeros((2, 2)), lambda P: pytest.fail("ran"),
+                           step=0.01)
+    assert got.simulations == 0 and not got.narrowed.any()
+
+
+_LINE = re.compile(r"^\s+(\S+)\s+(-?[\d.]+) (mm|deg)\s+-([\d.]+)[^/]*/ \+([\d.]+)")
+
+
+def test_every_printed_tolerance_holds_at_its_bound_in_simulation(tmp_path):
+    run = tmp_path / "run"
+    code, out, err = cli_output(["optimize", "simple", "--budget", "small", "--run", str(run),
+                                 "--workers", "1", "-q"])
+    assert code == 0, err
+    rows = [m.groups() for ln in out.splitlines() if (m := _LINE.match(ln))]
+    summary = json.loads((run / "result.json").read_text())
+    assert {r[0] for r in rows} == set(summary["values"]) and summary["tolerance_check"]
+    layout = str(run / "layout.json")
+    for name, _, unit, down, up in rows:
+        k = 1000.0 if unit == "mm" else 1.0
+        for moved in (-float(down), float(up)):
+            if moved == 0:
+                continue
+            to = summary["values"][name] + moved / k  # the layout's value, moved as printed
+            code, said, _ = cli_output(["-q", "simulate", "simple", "--layout", layout,
+                                        "--value", f"{name}={to!r}"])
+            assert code == 0 and "outcome: success" in said, (name, moved, said)
