@@ -304,3 +304,16 @@ def test_a_success_that_needed_one_alternative_says_so(tmp_path, capsys):
     assert main(["simulate", _write(tmp_path, text)]) == 0
     last = capsys.readouterr().out.strip().splitlines()[-1]
     assert last.startswith("outcome: success (5/6 events, the other 1 not needed (alternatives)")
+
+
+def test_a_value_far_outside_its_range_is_warned_of_naming_the_key(caplog):
+    # 17 typed for 17 mm: the cup would be 17 m away; simulated, as asked, with one warning
+    from tests._support import cli_output
+
+    code, out, _ = cli_output(["simulate", "simple", "--value", "track.z=17"])
+    warnings = [r.getMessage() for r in caplog.records if r.levelname == "WARNING"]
+    assert len(warnings) == 1 and warnings[0].startswith("--value track.z=17 m is "), warnings
+    assert "millimetres written as metres?" in warnings[0] and "outcome:" in out
+    caplog.clear()
+    cli_output(["simulate", "simple", "--value", "track.z=0.2"])  # just past its range
+    assert not [r for r in caplog.records if r.levelname == "WARNING"]

@@ -62,8 +62,26 @@ def with_values(scenario, name: str, values, pairs) -> tuple[str, np.ndarray]:
             raise UsageError("--value", pair, f"expected a number, got {text!r}") from None
         if not np.isfinite(values[index[key]]):
             raise UsageError("--value", pair, f"expected a finite number, got {text!r}")
+        _note_far_value(scenario.free[index[key]], values[index[key]])
         given.add(key)
     return ", ".join([name, *pairs]) if pairs else name, values
+
+
+def _note_far_value(f, value: float) -> None:
+    """Warn, in one line naming the key, of a ``--value`` further outside its parameter's
+    range than the range is wide (``cup.y=17`` for 17 mm puts the cup 17 m away)."""
+    import logging
+
+    width = f.high - f.low
+    by = f.low - value if value < f.low else value - f.high
+    if by <= width:
+        return
+    unit = "deg" if f.unit == "deg" else "m"
+    slip = (" (millimetres written as metres? --value takes metres and degrees, as the "
+            "scenario file)" if unit == "m" and abs(value) >= 1 else "")
+    logging.getLogger("rgmcad.cli").warning(
+        f"--value {f.name}={value:g} {unit} is {by:g} {unit} outside its range "
+        f"[{f.low:g}, {f.high:g}] {unit}{slip}")
 
 
 def add_scheduler_args(p: argparse.ArgumentParser) -> None:
