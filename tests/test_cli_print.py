@@ -173,3 +173,27 @@ def test_bad_input_gives_one_line_and_exit_2(tmp_path, capsys):
     rng = np.random.default_rng(0)
     Image.fromarray((200 + rng.integers(0, 40, (600, 400))).astype(np.uint8)).save(blank)
     _one_line_exit_2(["verify-print", str(blank), "--json"], capsys, "no template marks")
+
+
+def test_a_sheet_with_nothing_to_place_says_so_and_the_others_do_not(tmp_path):
+    # teapot's drawing is wide and sparse: some of its sheets show no part; a maker reading
+    # the parts list ("[sheet C2, D2]") finds each part's sheets, and an empty one says why
+    # it is there
+    import re
+
+    out = io.StringIO()
+    with contextlib.redirect_stdout(out):
+        assert main(["template", "teapot", "--layout", "solved", "--out", str(tmp_path)]) == 0
+    doc = pdfium.PdfDocument(str(tmp_path / "template.pdf"))
+    texts = [doc[i].get_textpage().get_text_range() for i in range(len(doc))]
+    sheets = {re.search(r"sheet (\w+) of \d+ x \d+", t).group(1): t for t in texts
+              if re.search(r"sheet (\w+) of \d+ x \d+", t)}
+    listed = set()
+    for t in texts[: len(texts) - len(sheets)]:  # the map and the parts list
+        for group in re.findall(r"\[sheets? ([^\]]*)\]", t.replace("\r\n", " ")):
+            listed.update(x.strip() for x in group.split(","))
+    empty = {label for label, t in sheets.items() if "Nothing to place on this sheet" in t}
+    assert empty and empty == set(sheets) - listed
+    said = next(ln for ln in out.getvalue().splitlines() if "hold nothing to place" in ln)
+    assert said.startswith(f"{len(empty)} of {len(sheets)} sheets")
+    assert all(label in said for label in empty)

@@ -78,6 +78,7 @@ def run(args) -> int:
             "pdf": str(result.pdf), "svg": str(result.svg),
             "plane": result.plane, "paper": result.paper, "orientation": result.orientation,
             "grid": [cols, rows], "sheets": list(result.sheet_labels), "pages": result.n_pages,
+            "empty_sheets": list(result.empty_sheets),
             "overlap_mm": result.overlap_mm,
             "parts": [{"name": p.name, "order": p.order,
                        "centroid_world": [float(v) for v in p.centroid_world],
@@ -96,6 +97,10 @@ def run(args) -> int:
     say(f"{result.paper} {result.orientation}: {cols} x {rows} sheets "
         f"({', '.join(result.sheet_labels)}) and the assembly map, {result.n_pages} pages, "
         f"{result.overlap_mm:g} mm overlap")
+    if result.empty_sheets:
+        n = len(result.empty_sheets)
+        say(f"{n} of {cols * rows} sheets hold nothing to place ({', '.join(result.empty_sheets)}):"
+            " they only hold their neighbours in line, and say so")
     if tolerances:
         say(f"tolerances from {args.layout}: {len(tolerances)} parameters")
     say(f"  {result.pdf}")

@@ -186,6 +186,15 @@ def part_sheets(part, sheets) -> list[str]:
     return [s.label for s in sheets if part.outline.intersects(box(*s.keep_mm))]
 
 
+def empty_sheets(parts, sheets, ropes=()) -> set[str]:
+    """Labels of the sheets whose kept area shows no part's outline and no rope: nothing is
+    placed on them, they only hold their neighbours in line."""
+    from shapely.geometry import box
+
+    return {s.label for s in sheets
+            if not any(o.outline.intersects(box(*s.keep_mm)) for o in [*parts, *ropes])}
+
+
 def _part_rows(parts, sheets, width: float) -> list[str]:
     """Order, name, sheets and tolerances of each part (the rest is beside its outline)."""
     rows = []
@@ -279,13 +288,18 @@ def _cover_pages(pdf, drawing, parts, info: SheetInfo, sheets, grid, title, fram
     c.scale(k, k)
     pdf.drawing(drawing.minimap, skip_text=True)
     c.restoreState()
+    empty = empty_sheets(parts, sheets, drawing.ropes)
     for s in sheets:  # what each sheet keeps once cut and laid
         su0, sv0, su1, sv1 = s.keep_mm
         rx, ry = ox + k * (su0 - u0), box_y + k * (v1 - sv1)
         pdf.rect(rx, ry, k * (su1 - su0), k * (sv1 - sv0), fill=None, stroke=(0.2, 0.2, 0.8),
                  width=0.25)
+        colour = (0.55, 0.55, 0.55) if s.label in empty else (0.2, 0.2, 0.8)
         pdf.text(rx + k * (su1 - su0) / 2, ry + k * (sv1 - sv0) / 2 + 1.5, s.label, 4.0,
-                 bold=True, anchor="middle", colour=(0.2, 0.2, 0.8))
+                 bold=True, anchor="middle", colour=colour)
+        if s.label in empty:
+            pdf.text(rx + k * (su1 - su0) / 2, ry + k * (sv1 - sv0) / 2 + 4.5, "(empty)", 2.4,
+                     anchor="middle", colour=colour)
 
     # test squares and legend
     sq_y = _SQUARES_Y
@@ -354,7 +368,9 @@ def write_pdf(path: Path, title: str, drawing: Drawing, parts, frame: PlaneFrame
     _cover_pages(pdf, drawing, parts, map_sheet, sheets, grid, title, frame, paper,
                  orientation, overlap_mm)
     seams = seams_of(sheets)
+    empty = empty_sheets(parts, sheets, drawing.ropes)
     for info in sheets:
-        tile_page(pdf, drawing, info, seams, grid, title, paper, frame)
+        tile_page(pdf, drawing, info, seams, grid, title, paper, frame,
+                  empty=info.label in empty)
     pdf.save()
     return pdf.pages

@@ -195,8 +195,13 @@ def _seam(pdf, info: SheetInfo, seam: Seam):
                  colour=(0.3, 0.3, 0.3))
 
 
-def tile_page(pdf, drawing, info: SheetInfo, seams, grid, title, paper, frame: PlaneFrame):
-    """Draw one tiled sheet on a new page of ``pdf``."""
+EMPTY_NOTE = "Nothing to place on this sheet: it only holds its neighbours in line."
+
+
+def tile_page(pdf, drawing, info: SheetInfo, seams, grid, title, paper, frame: PlaneFrame,
+              empty: bool = False):
+    """Draw one tiled sheet on a new page of ``pdf``; ``empty``: no part or rope shows on it,
+    and the sheet says so."""
     cols, rows = grid
     w, h = info.size_mm
     pdf.new_page(w, h)
@@ -238,6 +243,7 @@ def tile_page(pdf, drawing, info: SheetInfo, seams, grid, title, paper, frame: P
         PRINT_NOTE,
         f"{title}  -  sheet {info.label} of {cols} x {rows} ({paper} {info.orientation})",
         *steps,
+        *([EMPTY_NOTE] if empty else []),  # last: the band holds six lines
     ])
     ids = info.tag_ids
     bottom_band(pdf, f"scale bar: 100 mm; page {info.page}; marks {ids[0]}-{ids[-1]} "

@@ -23,7 +23,7 @@ from pathlib import Path
 from rgmcad.errors import RgmcadError, ScenarioError
 from rgmcad.printing.drawing import PartOutline, build_drawing
 from rgmcad.printing.inputs import template_inputs
-from rgmcad.printing.pdf import cover_page_count, write_pdf
+from rgmcad.printing.pdf import cover_page_count, empty_sheets, write_pdf
 from rgmcad.printing.plane import PlaneFrame, resolve_plane
 from rgmcad.printing.ropes import scene_ropes
 from rgmcad.printing.seams import label_keepouts, seams_of
@@ -72,6 +72,9 @@ class TemplateResult:
         Frames whose tolerances are marked at their origin.
     ropes : tuple of RopeOutline
         The ropes as drawn (their paths, drawing mm), in the order given.
+    empty_sheets : tuple of str
+        Labels of the sheets that show no part and no rope (each says so, and the map
+        greys it).
     """
 
     pdf: Path
@@ -91,6 +94,7 @@ class TemplateResult:
     n_pages: int = 0
     frames: tuple = ()
     ropes: tuple = ()
+    empty_sheets: tuple[str, ...] = ()
 
 
 def make_template(parts, base_planes, out_dir, *, plane: str | None = None,
@@ -176,6 +180,8 @@ def make_template(parts, base_planes, out_dir, *, plane: str | None = None,
         sheets=sheets, map_sheet=map_info, tag_centres=centres, parts=outlines,
         extent_mm=drawing.extent, overlap_mm=float(overlap_mm), n_pages=n_pages,
         frames=tuple(frames), ropes=drawing.ropes,
+        empty_sheets=tuple(s.label for s in sheets
+                           if s.label in empty_sheets(outlines, sheets, drawing.ropes)),
     )
 
 
