@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from rgmcad.runs.robustness import close_in_warning, failures_line, two_rates
+from rgmcad.runs.tolerance_check import narrowed_note, tolerance_header
 from rgmcad.scene.perturbation import PhysicsRanges
 
 __all__ = ["REPORT_FILE", "SLICE_PLOT", "PROGRESS_PLOT", "ROBUSTNESS_PLOT", "ERROR_GRID",
@@ -59,21 +60,6 @@ PARTS_MEET_NOTE = ("a tolerance marked 'parts meet' stops where moving that para
 NARROWED = " (narrowed by simulation)"
 
 
-def narrowed_note(s: dict) -> str:
-    """What NARROWED means, with the model's figures of the sides it marks."""
-    check = s.get("tolerance_check") or {}
-    said = []
-    for name, side in check.get("narrowed", {}).items():
-        k, unit = (1.0, "deg") if name.split(".")[-1] in ("heading", "pitch", "roll") else (
-            1000.0, "mm")
-        down, up = check["model_tolerances"][name]
-        said += [f"{name} {sign}{t * k:.1f} {unit}" for sign, t, here in (
-            ("-", down, "low"), ("+", up, "high")) if side in (here, "both")]
-    return ("a tolerance marked 'narrowed by simulation' is where the model was too generous "
-            f"(it said {', '.join(said)}): the layout failed in simulation inside that bound, "
-            "so the side stops where it still succeeded.")
-
-
 def range_end_marks(s: dict, name: str) -> tuple[str, str]:
     """The marks of a parameter's tolerance down and up in a run's summary: RANGE_END on a
     side whose tolerance reaches the end of the range (``range_ends``), PARTS_MEET on one
@@ -89,17 +75,6 @@ def range_end_marks(s: dict, name: str) -> tuple[str, str]:
                      PARTS_MEET if ends["overlap_ends"] else
                      NARROWED if narrowed.get(name) in (side, "both") else "")
     return marks[0], marks[1]
-
-
-def tolerance_header(s: dict) -> str:
-    """How the tolerances were found: the model's alone, or checked by simulation."""
-    check = s.get("tolerance_check")
-    if not check:
-        return ("placement tolerances (down / up), as the model predicts them (one parameter "
-                "moved alone; `rgmcad simulate ... --value NAME=V` tries one)")
-    return (f"placement tolerances (down / up), one parameter moved alone: the model's, each "
-            f"side then simulated at {check['points_per_side']} places up to its bound (its "
-            f"bound included; {check['simulations']} simulations), and narrowed where one failed")
 
 
 ROUGH_MODEL = 0.5
@@ -288,9 +263,13 @@ def _pyplot():
     return plt
 
 
-def plot_slice(scenario, model, x, influence, path: Path) -> None:
+def plot_slice(scenario, model, x, influence, path: Path, validity=None) -> bool:
     """Predicted success through ``x`` along its two most influential parameters (one for a
-    one-parameter scenario), axes in mm or degrees, contours at 50 % and 90 %."""
+    one-parameter scenario), axes in mm or degrees, contours at 50 % and 90 %. With
+    ``validity`` (``(n, d) -> (n,) bool``), layouts whose parts overlap are greyed and named:
+    the model never saw one, so its colour there means nothing, and a layout against such
+    a region is pushed against a part, not outside the 90 % contour by chance. Returns
+    whether the layout sits against such a region (its legend says so)."""
     from rgmcad.scene.design_space import bounds
 
     plt = _pyplot()
@@ -298,6 +277,7 @@ def plot_slice(scenario, model, x, influence, path: Path) -> None:
     order = np.argsort(-np.asarray(influence), kind="stable")
     fig, ax = plt.subplots(figsize=(5.5, 4.5), dpi=120)
     t = np.linspace(0.0, 1.0, 81)
+    against = False
     if len(x) == 1:
         k, unit = user_scale(scenario.free[0])
         span = (low[0] + t * (high[0] - low[0])) * k
@@ -316,11 +296,26 @@ def plot_slice(scenario, model, x, influence, path: Path) -> None:
         Z = model.success_proba(P).reshape(A.shape)
         U, V = (low[i] + A * (high[i] - low[i])) * ki, (low[j] + B * (high[j] - low[j])) * kj
         im = ax.pcolormesh(U, V, Z, vmin=0, vmax=1, cmap="viridis", shading="gouraud")
-        if np.ptp(Z) > 0:
-            lines = ax.contour(U, V, Z, levels=[0.5, 0.9], colors="w", linewidths=0.9)
+        bad = np.zeros(Z.shape, bool)
+        if validity is not None:  # the drawn layouts: 6,561 tests, about 0.1 s on simple
+            bad = ~np.asarray(validity(P), bool).reshape(A.shape)
+        if bad.any():
+            step = t[1] - t[0]  # each tested layout stands for the cell around it
+            edges = np.concatenate([[0.0], (t[:-1] + t[1:]) / 2, [1.0]])
+            Ue = (low[i] + edges * (high[i] - low[i])) * ki
+            Ve = (low[j] + edges * (high[j] - low[j])) * kj
+            ax.pcolormesh(Ue, Ve, np.where(bad, 1.0, np.nan), cmap="Greys", vmin=0, vmax=1.6,
+                          shading="flat")
+            ax.plot([], [], "s", color="0.45", label="parts overlap (not buildable)")
+            ci, cj = (int(round(v / step)) for v in (x[i], x[j]))
+            against = bool(bad[max(cj - 2, 0):cj + 3, max(ci - 2, 0):ci + 3].any())  # 2.5 %
+        if np.ptp(Z[~bad]) > 0 if (~bad).any() else False:
+            lines = ax.contour(U, V, np.ma.masked_array(Z, bad), levels=[0.5, 0.9], colors="w",
+                               linewidths=0.9)
             ax.clabel(lines, fmt=lambda v: f"{v:.0%}", fontsize=8)
         ax.plot((low[i] + x[i] * (high[i] - low[i])) * ki,
-                (low[j] + x[j] * (high[j] - low[j])) * kj, "r*", ms=12, label="layout")
+                (low[j] + x[j] * (high[j] - low[j])) * kj, "r*", ms=12,
+                label="layout (against parts that meet)" if against else "layout")
         ax.set_xlabel(f"{scenario.free[i].name} ({ui})")
         ax.set_ylabel(f"{scenario.free[j].name} ({uj})")
         fig.colorbar(im, ax=ax, label="predicted P(success)")
@@ -329,6 +324,7 @@ def plot_slice(scenario, model, x, influence, path: Path) -> None:
     fig.tight_layout()
     fig.savefig(path)
     plt.close(fig)
+    return len(x) > 1 and against
 
 
 def predicted_robustness(scenario, model, x, errors=ERROR_GRID, samples: int = 400,

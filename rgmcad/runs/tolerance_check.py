@@ -21,7 +21,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["POINTS", "BISECTIONS", "CheckedTolerances", "check_tolerances"]
+__all__ = ["POINTS", "BISECTIONS", "CheckedTolerances", "check_tolerances", "printed_step",
+           "sides_of", "flags_of", "success_of",
+           "narrowed_note", "tolerance_header"]
 
 POINTS = 4
 """Places simulated along each side, the bound the last: a quarter, half, three quarters."""
@@ -58,7 +60,9 @@ def check_tolerances(x: np.ndarray, tolerances: np.ndarray,
 
     Every place simulated is a whole number of ``step`` from ``x``, the model's tolerance
     rounded down to one: the number printed (to 0.1 mm or 0.1 degree) is a place simulated,
-    not a neighbour of one (between neighbours 0.1 mm apart a chain can fail).
+    not a neighbour of one (between neighbours 0.1 mm apart a chain can fail). A side that
+    reaches the end of its range is simulated at the end too and, if all its places
+    succeed, keeps the range's end exactly (printed "end of range").
 
     Parameters
     ----------
@@ -75,40 +79,102 @@ def check_tolerances(x: np.ndarray, tolerances: np.ndarray,
     """
     x = np.asarray(x, dtype=float).reshape(-1)
     step = np.broadcast_to(np.asarray(step, dtype=float), x.shape)
-    whole = np.floor(np.asarray(tolerances, dtype=float).reshape(len(x), 2)
-                     / step[:, None] + 1e-6).astype(int)  # steps of each side
-    sides = [(j, k) for j in range(len(x)) for k in range(2) if whole[j, k] > 0]
+    model = np.asarray(tolerances, dtype=float).reshape(len(x), 2)
+    room = np.column_stack([x, 1.0 - x])
+    whole = np.floor(model / step[:, None] + 1e-6).astype(int)  # steps of each side
+    to_end = model >= room - 1e-9
+    sides = [(j, k) for j in range(len(x)) for k in range(2) if model[j, k] > 0]
 
-    def moved(side, n):
+    def moved(side, offset):
         j, k = side
         p = x.copy()
-        p[j] = np.clip(x[j] + (n if k else -n) * step[j], 0.0, 1.0)
+        p[j] = np.clip(x[j] + (offset if k else -offset), 0.0, 1.0)
         return p
 
-    places = {s: sorted({max(1, int(whole[s] * f)) for f in np.arange(1, points + 1) / points})
-              for s in sides}
-    batch = [(s, n) for s in sides for n in places[s]]
-    ok = (np.asarray(succeeds(np.array([moved(s, n) for s, n in batch])), dtype=bool)
+    places = {}
+    for s in sides:  # offsets, normalised: whole steps, and the range's end where reached
+        grid = {max(1, int(whole[s] * f)) * step[s[0]]
+                for f in np.arange(1, points + 1) / points} if whole[s] else set()
+        places[s] = sorted(grid | ({float(room[s])} if to_end[s] else set()))
+    batch = [(s, t) for s in sides for t in places[s]]
+    ok = (np.asarray(succeeds(np.array([moved(s, t) for s, t in batch])), dtype=bool)
           if batch else np.zeros(0, bool))
     simulations = len(batch)
     first_failure: dict = {}
-    for (s, n), o in zip(batch, ok, strict=True):
+    for (s, t), o in zip(batch, ok, strict=True):
         if not o and s not in first_failure:
-            first_failure[s] = n
-    good = {s: max([0] + [n for n in places[s] if n < bad]) for s, bad in first_failure.items()}
-    bad = dict(first_failure)
+            first_failure[s] = t
+    # halvings in whole steps between the last place that succeeded and the first that failed
+    good = {s: int(round(max([0.0] + [t for t in places[s] if t < bad]) / step[s[0]]))
+            for s, bad in first_failure.items()}
+    bad = {s: int(np.ceil(t / step[s[0]] - 1e-6)) for s, t in first_failure.items()}
     for _ in range(bisections):
         keys = [s for s in bad if bad[s] - good[s] > 1]
         if not keys:
             break
         mids = [(good[s] + bad[s]) // 2 for s in keys]
-        ok = np.asarray(succeeds(np.array([moved(s, m) for s, m in zip(keys, mids,
-                                                                         strict=True)])), bool)
+        ok = np.asarray(succeeds(np.array([moved(s, m * step[s[0]]) for s, m in zip(
+            keys, mids, strict=True)])), bool)
         simulations += len(keys)
         for s, m, o in zip(keys, mids, ok, strict=True):
             (good if o else bad)[s] = m
-    out = whole.astype(float)
+    out = np.where(to_end, room, whole * step[:, None])
     narrowed = np.zeros(out.shape, dtype=bool)
     for s in bad:
-        out[s], narrowed[s] = good[s], True
-    return CheckedTolerances(out * step[:, None], narrowed, simulations)
+        out[s], narrowed[s] = good[s] * step[s[0]], True
+    return CheckedTolerances(out, narrowed, simulations)
+
+
+def printed_step(scenario) -> np.ndarray:
+    """(d,) 0.1 mm or 0.1 degree, the resolution tolerances are printed at, normalised."""
+    from rgmcad.scene.design_space import bounds
+
+    low, high = bounds(scenario)
+    return np.array([0.1 if f.unit == "deg" else 1e-4 for f in scenario.free]) / (high - low)
+
+
+def sides_of(flags: np.ndarray, scenario) -> dict[str, str]:
+    """``{parameter: "low" | "high" | "both"}`` of the flagged sides of (d, 2) bool."""
+    return {f.name: "both" if lo and hi else "low" if lo else "high"
+            for f, (lo, hi) in zip(scenario.free, flags, strict=True) if lo or hi}
+
+
+def flags_of(sides: list[str | None]) -> np.ndarray:
+    """(d, 2) bool of per-parameter sides ``"low"``, ``"high"``, ``"both"`` or None."""
+    return np.array([[s in ("low", "both"), s in ("high", "both")] for s in sides], bool)
+
+
+def success_of(recorded):
+    """``(n, d) -> (n,) bool``: whether each layout succeeds, simulated (and journaled) by a
+    :class:`~rgmcad.runs.store.RecordedProblem`."""
+    from rgmcad.sim.run import Outcome
+
+    def succeeds(P):
+        return np.array([r.outcome is Outcome.SUCCESS for r in recorded.simulate_records(P)])
+    return succeeds
+
+
+def narrowed_note(s: dict) -> str:
+    """What NARROWED means, with the model's figures of the sides it marks."""
+    check = s.get("tolerance_check") or {}
+    said = []
+    for name, side in check.get("narrowed", {}).items():
+        k, unit = (1.0, "deg") if name.split(".")[-1] in ("heading", "pitch", "roll") else (
+            1000.0, "mm")
+        down, up = check["model_tolerances"][name]
+        said += [f"{name} {sign}{t * k:.1f} {unit}" for sign, t, here in (
+            ("-", down, "low"), ("+", up, "high")) if side in (here, "both")]
+    return ("a tolerance marked 'narrowed by simulation' is where the model was too generous "
+            f"(it said {', '.join(said)}): the layout failed in simulation inside that bound, "
+            "so the side stops where it still succeeded.")
+
+
+def tolerance_header(s: dict) -> str:
+    """How the tolerances were found: the model's alone, or checked by simulation."""
+    check = s.get("tolerance_check")
+    if not check:
+        return ("placement tolerances (down / up), as the model predicts them (one parameter "
+                "moved alone; `rgmcad simulate ... --value NAME=V` tries one)")
+    return (f"placement tolerances (down / up), one parameter moved alone: the model's, each "
+            f"side then simulated at {check['points_per_side']} places up to its bound (its "
+            f"bound included; {check['simulations']} simulations), and narrowed where one failed")

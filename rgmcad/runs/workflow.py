@@ -48,7 +48,15 @@ from rgmcad.runs.report import (
 )
 from rgmcad.runs.starts import check_starts_valid, choose_layout, resolve_starts, starts_tag
 from rgmcad.runs.store import MODEL, SETTINGS, SIMULATIONS, RecordedProblem, RunStore, run_identity
-from rgmcad.runs.tolerance_check import BISECTIONS, POINTS, check_tolerances
+from rgmcad.runs.tolerance_check import (
+    BISECTIONS,
+    POINTS,
+    check_tolerances,
+    flags_of,
+    printed_step,
+    sides_of,
+    success_of,
+)
 from rgmcad.scene.perturbation import DEFAULT_PHYSICS, PhysicsRanges, corner_worlds
 from rgmcad.sim.run import Outcome
 
@@ -255,7 +263,7 @@ def optimize_scenario(
             if chosen["verified"]:  # tolerances of a layout that fails mean nothing
                 progress.stage("tolerance check")
                 checked = check_tolerances(np.asarray(chosen["x"], dtype=float), at_layout[-1],
-                                           _success_of(learner_problem), _printed_step(scenario))
+                                           success_of(learner_problem), printed_step(scenario))
         finally:
             executor.close()
         summary = _write_outputs(scenario, store, learner_problem, result, chosen,
@@ -321,21 +329,6 @@ def _readable_json(path: Path) -> bool:
         return False
 
 
-def _printed_step(scenario) -> np.ndarray:
-    """(d,) 0.1 mm or 0.1 degree, the resolution tolerances are printed at, normalised."""
-    from rgmcad.scene.design_space import bounds
-
-    low, high = bounds(scenario)
-    return np.array([0.1 if f.unit == "deg" else 1e-4 for f in scenario.free]) / (high - low)
-
-
-def _success_of(recorded):
-    """``(n, d) -> (n,) bool``: whether each layout succeeds, simulated by the run."""
-    def succeeds(P):
-        return np.array([r.outcome is Outcome.SUCCESS for r in recorded.simulate_records(P)])
-    return succeeds
-
-
 def _write_outputs(scenario, store, recorded, result, chosen, wall_time, seed, budget,
                    robustness, starts, at_layout, checked) -> dict:
     from rgmcad.learning import overlap_ends, range_ends
@@ -358,7 +351,7 @@ def _write_outputs(scenario, store, recorded, result, chosen, wall_time, seed, b
     narrowed = (np.zeros((len(x), 2), bool) if checked is None else checked.narrowed)
     check = None if checked is None else {
         "points_per_side": POINTS, "halvings": BISECTIONS, "simulations": checked.simulations,
-        "narrowed": _sides(narrowed, scenario), "model_tolerances": real(model_tol)}
+        "narrowed": sides_of(narrowed, scenario), "model_tolerances": real(model_tol)}
     spread = influence(model, x)
     store.save_model(model)
     layout = write_json_atomic(run_dir / LAYOUT_FILE, layout_document(
@@ -387,8 +380,8 @@ def _write_outputs(scenario, store, recorded, result, chosen, wall_time, seed, b
         "tolerances": tolerances,
         "tolerance_check": check,
         # what stops a side the simulations kept: the range, or parts meeting
-        "range_ends": _sides(_flags(range_ends(x, model_tol)) & ~narrowed, scenario),
-        "overlap_ends": _sides(_flags(overlap_ends(x, model_tol, result.settings, validity))
+        "range_ends": sides_of(flags_of(range_ends(x, model_tol)) & ~narrowed, scenario),
+        "overlap_ends": sides_of(flags_of(overlap_ends(x, model_tol, result.settings, validity))
                                & ~narrowed, scenario),
         "influence": {f.name: float(v) for f, v in zip(scenario.free, spread, strict=True)},
         "verified": chosen["verified"],
@@ -430,23 +423,12 @@ def _write_outputs(scenario, store, recorded, result, chosen, wall_time, seed, b
                   "robustness_plot": ROBUSTNESS_PLOT, "model": MODEL,
                   "simulations": SIMULATIONS, "settings": SETTINGS},
     }
-    plot_slice(scenario, model, x, spread, run_dir / SLICE_PLOT)
+    plot_slice(scenario, model, x, spread, run_dir / SLICE_PLOT, validity)
     plot_robustness(scenario, model, x, run_dir / ROBUSTNESS_PLOT)
     plot_progress(result, run_dir / PROGRESS_PLOT)
     write_atomic(run_dir / REPORT_FILE, report_markdown(scenario, summary, low, high))
     store.write_result(summary)  # last: its presence marks the run finished
     return summary
-
-
-def _flags(sides: list[str | None]) -> np.ndarray:
-    """(d, 2) bool of per-parameter sides ``"low"``, ``"high"``, ``"both"`` or None."""
-    return np.array([[s in ("low", "both"), s in ("high", "both")] for s in sides], bool)
-
-
-def _sides(flags: np.ndarray, scenario) -> dict[str, str]:
-    """``{parameter: "low" | "high" | "both"}`` of the flagged sides of (d, 2) bool."""
-    return {f.name: "both" if lo and hi else "low" if lo else "high"
-            for f, (lo, hi) in zip(scenario.free, flags, strict=True) if lo or hi}
 
 
 def _factor(scenario, result, event) -> dict:

@@ -42,7 +42,9 @@ TEMPLATE_FILES = ("template/template.pdf", "template.pdf")
 _FIGURES = (
     (SLICE_PLOT, "Predicted probability of success through the layout (star) along the two "
      "parameters it depends on most, the others held at the layout's values; contours at "
-     "50 % and 90 %."),
+     "50 % and 90 %. Grey: the parts overlap there (nothing can be built, and the model, "
+     "which never saw such a layout, is not drawn); a star against grey is pushed against "
+     "a part."),
     (ROBUSTNESS_PLOT, "Predicted probability of success when every part is placed with a "
      "random error (Gaussian, this standard deviation in mm for positions and degrees for "
      "angles), from the learnt model."),
