@@ -49,7 +49,8 @@ def browser():
 @contextlib.contextmanager
 def _open(browser, path):
     """The page at ``path`` once its viewer is ready, and the seconds that took; its clock is
-    playwright's, stopped: time passes in it only by ``page.clock.run_for``."""
+    playwright's, stopped: time passes in it only by ``page.clock.run_for`` (every frame) or
+    ``fast_forward`` (one frame, the time jumped)."""
     page = browser.new_page(viewport={"width": 1000, "height": 800})
     errors = []
     page.on("pageerror", lambda e: errors.append(str(e)))
@@ -106,7 +107,7 @@ def test_two_screenshots_a_second_apart_differ_while_playing(browser, replay):
         _viewer(page, "play()")
         page.clock.run_for(50)
         first, t_first = _canvas(page), _viewer(page, "time()")
-        page.clock.run_for(1000)
+        page.clock.fast_forward(1000)  # one frame, a second later
         second, t_second = _canvas(page), _viewer(page, "time()")
         assert t_second > t_first and _viewer(page, "playing()")
         assert np.abs(first - second).max() > 50
@@ -114,7 +115,7 @@ def test_two_screenshots_a_second_apart_differ_while_playing(browser, replay):
         assert not _viewer(page, "playing()")
         page.clock.run_for(50)
         still, t_still = _canvas(page), _viewer(page, "time()")
-        page.clock.run_for(1000)
+        page.clock.fast_forward(1000)
         assert _viewer(page, "time()") == t_still
         assert np.array_equal(still, _canvas(page))
 
@@ -127,12 +128,12 @@ def test_slow_motion_plays_at_a_tenth_of_real_time(browser, replay):
         _viewer(page, "play()")
         page.clock.run_for(100)  # the first frame after play() only starts the count
         t0 = _viewer(page, "time()")
-        page.clock.run_for(2000)
+        page.clock.fast_forward(2000)
         advanced = _viewer(page, "time()") - t0
         assert advanced == pytest.approx(0.2, abs=0.004), advanced  # a frame is 16 ms
         page.click("#rgmcad-replay .speed >> text='1x'")
         t0 = _viewer(page, "time()")
-        page.clock.run_for(200)
+        page.clock.fast_forward(200)
         assert _viewer(page, "time()") - t0 == pytest.approx(0.2, abs=0.04)
 
 
