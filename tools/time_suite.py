@@ -2,7 +2,9 @@
 HEAD (its own environment, no built parts), optionally while CPU-bound processes run beside it,
 several times in a row. Prints each run's wall time, its exit status and its ten slowest tests.
 
-    uv run python tools/time_suite.py [--repeat 3] [--load-per-core 2] [--keep DIR]
+    uv run python tools/time_suite.py [--repeat 3] [--load-per-core 2] [--keep DIR] [-- ARGS]
+
+ARGS after ``--`` go to pytest (e.g. ``-- -n 3`` to try another number of workers).
 
 --load-per-core K starts K busy-looping Python processes per CPU for the whole measurement
 (2 per core is the "busy machine" of the test-suite issue). The environment is synced first,
@@ -34,6 +36,7 @@ def main() -> int:
     ap.add_argument("--load-per-core", type=int, default=0)
     ap.add_argument("--keep", metavar="DIR", help="clone here and keep it (default: a temporary "
                     "folder, removed afterwards)")
+    ap.add_argument("pytest_args", nargs="*", help="passed to pytest (after --)")
     args = ap.parse_args()
 
     where = Path(args.keep) if args.keep else Path(tempfile.mkdtemp(prefix="rgmcad-suite-"))
@@ -56,7 +59,7 @@ def main() -> int:
     try:
         for k in range(args.repeat):
             start = time.monotonic()
-            done = subprocess.run(["uv", "run", "pytest", "--durations=10"], cwd=clone,
+            done = subprocess.run(["uv", "run", "pytest", "--durations=10", *args.pytest_args], cwd=clone,
                                   capture_output=True, text=True, env=env)
             wall = time.monotonic() - start
             lines = done.stdout.splitlines()
