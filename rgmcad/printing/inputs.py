@@ -34,7 +34,6 @@ an angle also as the millimetres it moves the frame's farthest part.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -105,8 +104,10 @@ def _number(v: float, down: bool = True) -> str:
     """Millimetres or degrees as a maker reads them: to 0.1 (rounded down, as a tolerance
     must be, unless ``down`` is False), no trailing zeros, never in scientific notation
     (``6.1e-05`` was printed for a side with no room)."""
-    v = math.floor(abs(v) * 10 + 1e-6) / 10 if down else abs(v)
-    return f"{v:.1f}".rstrip("0").rstrip(".")
+    from rgmcad.runs.report import tolerance_text
+
+    text = tolerance_text(abs(v)) if down else f"{abs(v):.1f}"
+    return text.rstrip("0").rstrip(".")
 
 
 def format_tolerance(label: str, component: str, down: float, up: float,

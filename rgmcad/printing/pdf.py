@@ -252,7 +252,7 @@ def cover_page_count(parts, size_mm, sheets=(), ropes=()) -> int:
 
 
 def _cover_pages(pdf, drawing, parts, info: SheetInfo, sheets, grid, title, frame, paper,
-                 orientation, overlap):
+                 orientation, overlap, empty: set[str]):
     w, h = info.size_mm
     pdf.new_page(w, h)
     _page_marks(pdf, info)
@@ -288,7 +288,6 @@ def _cover_pages(pdf, drawing, parts, info: SheetInfo, sheets, grid, title, fram
     c.scale(k, k)
     pdf.drawing(drawing.minimap, skip_text=True)
     c.restoreState()
-    empty = empty_sheets(parts, sheets, drawing.ropes)
     for s in sheets:  # what each sheet keeps once cut and laid
         su0, sv0, su1, sv1 = s.keep_mm
         rx, ry = ox + k * (su0 - u0), box_y + k * (v1 - sv1)
@@ -358,17 +357,18 @@ def _cover_pages(pdf, drawing, parts, info: SheetInfo, sheets, grid, title, fram
 
 def write_pdf(path: Path, title: str, drawing: Drawing, parts, frame: PlaneFrame,
               map_sheet: SheetInfo, sheets: tuple[SheetInfo, ...], grid: tuple[int, int],
-              paper: str, orientation: str, overlap_mm: float) -> int:
-    """Write the template's PDF; returns its number of pages.
+              paper: str, orientation: str, overlap_mm: float,
+              empty: set[str] = frozenset()) -> int:
+    """Write the template's PDF; returns its number of pages. ``empty``: labels of the
+    sheets with nothing to place (:func:`empty_sheets`), which say so.
 
     ``parts`` are the drawing's :class:`rgmcad.printing.drawing.PartOutline` in placement
     order; ``sheets`` the tiled sheets, numbered after :func:`cover_page_count` pages.
     """
     pdf = _Pdf(path, title)
     _cover_pages(pdf, drawing, parts, map_sheet, sheets, grid, title, frame, paper,
-                 orientation, overlap_mm)
+                 orientation, overlap_mm, empty)
     seams = seams_of(sheets)
-    empty = empty_sheets(parts, sheets, drawing.ropes)
     for info in sheets:
         tile_page(pdf, drawing, info, seams, grid, title, paper, frame,
                   empty=info.label in empty)

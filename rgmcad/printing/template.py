@@ -168,8 +168,9 @@ def make_template(parts, base_planes, out_dir, *, plane: str | None = None,
     first = cover_page_count(outlines, map_info.size_mm, sheets, drawing.ropes) + 1
     sheets = tuple(replace(s, page=first + i) for i, s in enumerate(sheets))
     pdf_path, svg_path = out_dir / "template.pdf", out_dir / "template.svg"
+    empty = empty_sheets(outlines, sheets, drawing.ropes)
     n_pages = write_pdf(pdf_path, title, drawing, outlines, frame, map_info, sheets,
-                        (cols, rows), paper, orientation, overlap_mm)
+                        (cols, rows), paper, orientation, overlap_mm, empty)
     write_svg(svg_path, drawing, title, frame)
 
     centres = {"map": dict(map_info.tag_centres_mm)}
@@ -180,8 +181,7 @@ def make_template(parts, base_planes, out_dir, *, plane: str | None = None,
         sheets=sheets, map_sheet=map_info, tag_centres=centres, parts=outlines,
         extent_mm=drawing.extent, overlap_mm=float(overlap_mm), n_pages=n_pages,
         frames=tuple(frames), ropes=drawing.ropes,
-        empty_sheets=tuple(s.label for s in sheets
-                           if s.label in empty_sheets(outlines, sheets, drawing.ropes)),
+        empty_sheets=tuple(s.label for s in sheets if s.label in empty),
     )
 
 
