@@ -86,6 +86,9 @@ def test_exported_glb_of_a_layout_file_names_every_part(tmp_path, capsys):
     everything = np.vstack([b.world_vertices() for b in names.values()])
     y_up = everything[:, [0, 2, 1]] * [1, 1, -1]  # glTF's axes: +Y up, +Z toward the viewer
     assert np.allclose(glb.bounds, [y_up.min(0), y_up.max(0)], atol=5e-4)
+    # meshed to 0.1 mm, not to a fraction of each face: the 20 mm ball was 100,520 triangles
+    faces = {n: len(m.faces) for n, m in glb.geometry.items()}
+    assert sum(faces.values()) < 10_000, faces
 
 
 def test_a_part_named_like_its_scenario_is_exported(tmp_path, capsys):
