@@ -115,7 +115,7 @@ def _vectors(f) -> list[tuple[str, list[str], str | None]]:
         words = cmd.split()
         extra = {"render": ["--out", out_png], "template": ["--out", f["run"] + "_tpl"],
                  "optimize": ["--run", f["run"], "--budget", "small"],
-                 "evaluate": ["--layout", "initial", "--samples", "1"],
+                 "evaluate": ["--layout", "initial", "--rho-g", "--samples", "1"],
                  "build parts": ["--out", f["run"] + "_parts"],
                  "export": ["--out", f["run"] + ".step"]}.get(cmd, [])
         first = f["tiny.png"] if cmd == "verify-print" else "simple"
@@ -173,15 +173,15 @@ def _vectors(f) -> list[tuple[str, list[str], str | None]]:
             v.append(("bad number", ["optimize", "simple", "--run", f["run"], flag, n], flag))
             v.append(("bad number", ["evaluate", "simple", "--layout", "initial", flag, n], flag))
     for n in ("abc", "0", "-1", ""):
-        v.append(("bad number", ["evaluate", "simple", "--layout", "initial", "--samples", n],
-                  "--samples"))
+        v.append(("bad number", ["evaluate", "simple", "--layout", "initial", "--rho-g",
+                                 "--samples", n], "--samples"))
     # layouts
     for key in ("missing", "dir", "empty", "binary", "json_list", "toml_garbage", "fifo",
                 "nan_layout"):
         if key in f:
             for cmd in (["simulate", "simple"], ["render", "simple", "--out", out_png],
                         ["template", "simple", "--out", f["run"] + "_t"],
-                        ["evaluate", "simple", "--samples", "1"]):
+                        ["evaluate", "simple", "--rho-g", "--samples", "1"]):
                 if cmd[0] != "evaluate" or key != "nan_layout":  # evaluate must not run
                     v.append(("garbage layout", [*cmd, "--layout", f[key]], None))
     # outputs

@@ -113,7 +113,7 @@ def _commands(tmp: Path) -> dict[str, list[str]]:
         "build parts": ["build", "parts", "simple"],
         "template": ["template", "simple", "--out", str(tmp / "t")],
         "verify-print": ["verify-print", str(ROOT / "docs" / "ballrun_sheet.png")],
-        "evaluate": ["evaluate", "simple", "--layout", "solved", "--samples", "1",
+        "evaluate": ["evaluate", "simple", "--layout", "solved", "--rho-g", "--samples", "1",
                      "--workers", "2", "--out", str(tmp / "e.png")],
         "export": ["export", "simple", "--out", str(tmp / "s.glb")],
     }
@@ -232,7 +232,7 @@ def test_evaluate_without_out_writes_its_plot_beside_the_layout_or_here(tmp_path
     before = set(cache.parent.rglob("*.png"))
     for given, plot in (("run/layout.json", "run/layout-robustness.png"),
                         ("solved", "robustness-simple-solved.png")):
-        assert main(["evaluate", "simple", "--layout", given, "--samples", "1", "--workers",
+        assert main(["evaluate", "simple", "--layout", given, "--rho-g", "--samples", "1", "--workers",
                      "1", "--json"]) == 0
         out = json.loads(capsys.readouterr().out)
         assert out["plot"] == plot and (tmp_path / plot).stat().st_size > 0

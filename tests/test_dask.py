@@ -97,7 +97,8 @@ def test_a_worker_of_another_version_is_refused_in_one_line(cluster, tmp_path):
         worker = sorted(client.scheduler_info()["workers"])[0]
         client.run(_set_version, "0.0.9-other", workers=[worker])
         try:
-            code, out, err = cli_output(["evaluate", SIMPLE, "--layout", "initial", "--samples", "1",
+            code, out, err = cli_output(["evaluate", SIMPLE, "--layout", "initial", "--rho-g",
+                                         "--samples", "1",
                                    "--scheduler", cluster.scheduler_address,
                                    "--out", str(tmp_path / "p.png")])
         finally:
@@ -164,7 +165,7 @@ def test_a_scheduler_of_another_version_is_refused_in_one_line(tmp_path):
                         "--preload", str(tmp_path / "other.py")], tmp_path, log)
     try:
         address = _scheduler_address(log, scheduler)
-        code, out, err = cli_output(["evaluate", SIMPLE, "--layout", "initial", "--samples", "1",
+        code, out, err = cli_output(["evaluate", SIMPLE, "--layout", "initial", "--rho-g", "--samples", "1",
                                "--scheduler", address,
                                "--out", str(tmp_path / "p.png")])
     finally:

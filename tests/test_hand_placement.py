@@ -129,7 +129,7 @@ def test_parts_pushed_into_each_other_are_drawn_again_until_none_are(teapot):
 
 
 def test_evaluate_with_every_part_placed_by_hand(tmp_path):
-    argv = ["evaluate", RAMP, "--layout", "central", "--samples", "1", "--workers", "1",
+    argv = ["evaluate", RAMP, "--layout", "central", "--rho-g", "--samples", "1", "--workers", "1",
             "--out", str(tmp_path / "r.png")]
     code, out, _ = cli_output([*argv, "--json", "--physics", "position=0.002,heading=1"])
     assert code == 0

@@ -145,7 +145,7 @@ def test_a_run_directory_of_another_scenario_is_refused(reference, capsys):
 
 
 def test_evaluate_json(tmp_path):
-    code, out = run_cli(["evaluate", SIMPLE, "--layout", "solved", "--samples", "2",
+    code, out = run_cli(["evaluate", SIMPLE, "--layout", "solved", "--rho-g", "--samples", "2",
                       "--workers", "1", "--out", str(tmp_path / "rob.png"), "--json"])
     assert code == 0
     assert {"rho_g", "curve", "simulations"} <= set(out)
@@ -462,7 +462,7 @@ def test_evaluate_warns_when_a_layout_fails_even_placed_almost_exactly(tmp_path,
         low, high = ((low + high) / 2, high) if works((low + high) / 2) else (low, (low + high) / 2)
     layout = tmp_path / "edge.json"
     layout.write_text(json.dumps({"scenario": "simple", "vector": [1 / 3, 2 / 3, low]}))
-    argv = ["evaluate", "simple", "--samples", "10", "--physics", "off", "--workers", "1",
+    argv = ["evaluate", "simple", "--rho-g", "--samples", "10", "--physics", "off", "--workers", "1",
             "--out", str(tmp_path / "r.png"), "-q", "--layout"]
     assert main([*argv, str(layout)]) == 0
     warning = re.search(r"warning: only (\d+) of the 10 layouts within 1/300 of this one "

@@ -118,7 +118,7 @@ def test_a_heavier_block_has_the_inertia_of_a_heavier_block(ramp):
 
 
 def test_evaluate_reports_both_robustness_figures(tmp_path):
-    code, out, _ = cli_output(["evaluate", RAMP, "--layout", "central", "--samples", "1",
+    code, out, _ = cli_output(["evaluate", RAMP, "--layout", "central", "--rho-g", "--samples", "1",
                               "--workers", "1", "--out", str(tmp_path / "r.png"), "--json",
                               "--physics", "friction=0.3,mass=0.05"])
     result = json.loads(out)
@@ -128,13 +128,13 @@ def test_evaluate_reports_both_robustness_figures(tmp_path):
     assert phys["simulations"] == result["simulations"] == sum(result["counts"])
     low, high = phys["rho_g_interval"]
     assert low <= phys["rho_g"] <= high and len(phys["curve"]) == len(result["curve"])
-    code, out, _ = cli_output(["evaluate", RAMP, "--layout", "central", "--samples", "1",
+    code, out, _ = cli_output(["evaluate", RAMP, "--layout", "central", "--rho-g", "--samples", "1",
                               "--workers", "1", "--out", str(tmp_path / "r.png"), "--json",
                               "--physics", "off"])
     assert json.loads(out)["physics"] is None
     assert json.loads(out)["curve"] == result["curve"]  # the same placement errors
     # read as text, the count covers every simulation that ran, both kinds of error
-    code, out, _ = cli_output(["evaluate", RAMP, "--layout", "central", "--samples", "1",
+    code, out, _ = cli_output(["evaluate", RAMP, "--layout", "central", "--rho-g", "--samples", "1",
                               "--workers", "1", "--out", str(tmp_path / "r.png"),
                               "--physics", "friction=0.3,mass=0.05"])
     n = result["simulations"]

@@ -438,8 +438,8 @@ def no_simulation(monkeypatch):
     (["optimize", SIMPLE, "--batch", "0"], "--batch"),
     (["optimize", SIMPLE, "--batch", "10001"], "--batch"),
     (["evaluate", SIMPLE, "--layout", "solved", "--workers", "0"], "--workers"),
-    (["evaluate", SIMPLE, "--layout", "solved", "--samples", "0"], "--samples"),
-    (["evaluate", SIMPLE, "--layout", "solved", "--samples", "1000000000"], "--samples"),
+    (["evaluate", SIMPLE, "--layout", "solved", "--rho-g", "--samples", "0"], "--samples"),
+    (["evaluate", SIMPLE, "--layout", "solved", "--rho-g", "--samples", "1000000000"], "--samples"),
     (["evaluate", SIMPLE, "--layout", "solved", "--seed", "-5"], "--seed"),
 ])
 def test_numbers_out_of_range_are_one_line_naming_the_flag(argv, named, no_simulation):

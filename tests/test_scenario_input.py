@@ -270,7 +270,7 @@ def test_parts_option_loads_families_from_a_folder(tmp_path, capsys):
     assert "--parts" in capsys.readouterr().err
     # the commands that simulate many layouts use them too, in their worker processes
     plot = tmp_path / "curve.png"
-    assert main([*args[:2], "evaluate", str(file), "--layout", "initial", "--samples", "1",
+    assert main([*args[:2], "evaluate", str(file), "--layout", "initial", "--rho-g", "--samples", "1",
                  "--workers", "1", "--out", str(plot), "--json"]) == 0
     assert json.loads(capsys.readouterr().out)["simulations"] > 0 and plot.is_file()
     assert main([*args[:2], "build", "parts", str(file), "--out", str(tmp_path / "b")]) == 0

@@ -50,7 +50,7 @@ def test_the_first_failure_is_where_the_chain_broke(teapot):
 
 def test_evaluate_counts_every_failed_copy_once(tmp_path):
     # the block at the friction edge: placement errors never stop it, +-20 % friction does
-    argv = ["evaluate", RAMP, "--layout", "edge", "--samples", "8", "--workers", "1",
+    argv = ["evaluate", RAMP, "--layout", "edge", "--rho-g", "--samples", "8", "--workers", "1",
             "--out", str(tmp_path / "r.png")]
     code, out, _ = cli_output([*argv, "--json"])
     assert code == 0

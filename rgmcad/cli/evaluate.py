@@ -1,5 +1,6 @@
-"""``rgmcad evaluate``: a layout's local and global robustness, by simulation
-(:func:`rgmcad.runs.evaluation.evaluate_layout`)."""
+"""``rgmcad evaluate``: how often a layout works when a person builds it, by simulation
+(:func:`rgmcad.runs.evaluation.evaluate_layout`); ``--rho-g``: Table 1's local and global
+robustness instead."""
 
 from __future__ import annotations
 
@@ -23,8 +24,17 @@ def configure(p: argparse.ArgumentParser) -> None:
     add_scenario_arg(p)
     p.add_argument("--layout", required=True, help="a named layout of the scenario or a layout "
                    "file (e.g. runs/simple-s0/layout.json)")
-    p.add_argument("--samples", type=int, default=50, help="valid layouts simulated per radius, "
-                   "1 to 100000 (default 50; 30 radii, so 1500 simulations)")
+    p.add_argument("--hand", default="2mm,2deg", help="how far from its printed place a person "
+                   "puts each part, e.g. 3mm,1deg (default 2mm,2deg: uniform within +-2 mm "
+                   "along x and y and +-2 degrees about the vertical)")
+    p.add_argument("--precision", type=float, default=0.05, help="simulate until the 95 %% "
+                   "interval of the success rate is this wide on each side, 0.005 to 0.5 "
+                   "(default 0.05: +-5 points; at most 320 builds)")
+    p.add_argument("--rho-g", action="store_true", help="measure instead the local robustness "
+                   "in the normalised design space and its integral rho_g (Table 1)")
+    p.add_argument("--samples", type=int, default=None, help="with --rho-g: valid layouts "
+                   "simulated per radius, 1 to 100000 (default 50; 30 radii, so 1500 "
+                   "simulations)")
     p.add_argument("--seed", type=int, default=0, help="seed of the sampling, 0 to 2^32 - 1 "
                    "(default 0)")
     p.add_argument("--workers", type=int, default=None, help="simulation processes, 1 to 4 per "
@@ -38,9 +48,17 @@ def configure(p: argparse.ArgumentParser) -> None:
 
 def run(args) -> int:
     from rgmcad.cli.paths import output_file
+    from rgmcad.errors import UsageError
     from rgmcad.runs.checks import MAX_SAMPLES, MAX_SEED, check_range, check_workers, plot_suffixes
     from rgmcad.runs.evaluation import evaluate_layout
+    from rgmcad.runs.hand import check_precision, parse_hand
 
+    hand = parse_hand(args.hand)
+    check_precision(args.precision, "--precision")
+    if args.samples is not None and not args.rho_g:
+        raise UsageError("--samples", str(args.samples), "counts layouts per radius of --rho-g; "
+                         "the hand's figures simulate until --precision is reached")
+    args.samples = 50 if args.samples is None else args.samples
     check_range(args.samples, 1, MAX_SAMPLES, "--samples", "a number of layouts per radius")
     check_range(args.seed, 0, MAX_SEED, "--seed", "a seed")
     check_workers(args.workers)
@@ -48,17 +66,33 @@ def run(args) -> int:
     if args.out is not None:  # and again, trying, by the workflow, with its default
         output_file(args.out, "--out", plot_suffixes())
     note_first_build(args)
-    bar = SimulationBar("validity", count_tested=True, enabled=not args.quiet)
+    bar = SimulationBar("validity" if args.rho_g else "hand", count_tested=args.rho_g,
+                        enabled=not args.quiet)
     try:
         result = evaluate_layout(args.scenario, args.layout, samples=args.samples,
                                  seed=args.seed, workers=args.workers,
                                  build_dir=args.build_dir, plot=args.out, progress=bar,
                                  parts_dir=parts_dir_arg(args), scheduler=args.scheduler,
-                                 physics=physics)
+                                 physics=physics, measure="rho_g" if args.rho_g else "hand",
+                                 hand=hand, precision=args.precision)
     finally:
         bar.close()
     if args.json:
         say(json.dumps(result))
+        return 0
+    if not args.rho_g:
+        from rgmcad.runs.hand import hand_headline, hand_table, weak_link_lines
+
+        say(f"{result['scenario']}, layout {result['layout']}: {hand_headline(result)}; "
+            f"{result['simulations']} simulations in {result['wall_time']:.0f} s")
+        if failed := result["hand"]["failed"]:
+            say("  fails first at: " + ", ".join(f"{e} {n}" for e, n in list(failed.items())[:3]))
+        say("works, against the hand's error (95 % interval; the same builds at every size):")
+        for size, works, builds in hand_table(result):
+            say(f"  {size:<22s}{works:>16s}  {builds}")
+        for line in weak_link_lines(result):
+            say(line)
+        say(f"plot: {result['plot']}")
         return 0
     low, high = result["rho_g_interval"]
     phys = result["physics"]
@@ -85,3 +119,4 @@ def run(args) -> int:
             say(f"{what}, {line}")
     say(f"plot: {result['plot']}")
     return 0
+

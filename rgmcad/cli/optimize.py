@@ -112,16 +112,18 @@ def show(summary: dict, as_json: bool, wall_time: float | None = None) -> None:
         return
     weakest = summary["weakest_event"]
     say(f"{summary['scenario']}: {summary['layout']}")
+    if summary.get("hand"):
+        from rgmcad.runs.hand import hand_headline, weak_link_lines
+
+        say("\n".join([f"built by hand: {hand_headline(summary['hand'])}",
+                       *weak_link_lines(summary["hand"], most=3)]))
     say(f"predicted P(success) {summary['probability']:.3f}, weakest link {weakest} "
         f"({summary.get('weakest_probability', summary['event_probabilities'].get(weakest, 1.0)):.3f}"
         f"); {summary['source']}")
-    for line in physics.robustness_lines(summary):
-        say(line)
     from rgmcad.runs.report import count_line, placement_lines
 
-    say(count_line(summary))
-
-    for line in placement_lines(summary):
+    for line in [*physics.robustness_lines(summary), count_line(summary),
+                 *placement_lines(summary)]:
         say(line)
     run = Path(summary["run"])
     say(f"report: {run / 'report.html'} (as text: {run / 'report.md'}); the layout as CAD: "

@@ -26,6 +26,7 @@ class SimulationBar:
         self.seen: set[int] = set()
         self._records: list = []  # keeps the records alive, so their ids stay theirs
         self.simulations = self.successes = self.replayed = self.n_tested = 0
+        self.builds = self.built_successes = 0
 
     def _start(self):
         if self.bar is None:
@@ -36,7 +37,17 @@ class SimulationBar:
         return self.bar
 
     def stage(self, name: str, total: int | None = None) -> None:
+        """A new stage; with ``total`` (its simulations, or at most so many) the bar counts
+        the stage's simulations against it and shows the time left (at most, then); without,
+        every simulation so far."""
         bar = self._start()
+        if total is not None:
+            bar.reset(total=total)
+        elif bar.total is not None:  # back to counting every simulation of the run
+            bar.reset()
+            bar.total = None
+            bar.update(self.simulations)
+            self._postfix(bar)
         if name != self.desc:
             self.desc = name
             bar.set_description(name)
@@ -60,8 +71,19 @@ class SimulationBar:
         self._postfix(bar)
         bar.update(1)
 
+    def built(self, record) -> None:
+        """A build placed by hand: the stage's bar moves, the run's counts do not."""
+        from rgmcad.sim.run import Outcome
+
+        self.builds += 1
+        self.built_successes += record.outcome is Outcome.SUCCESS
+        bar = self._start()
+        bar.set_postfix(works=self.built_successes, refresh=False)
+        bar.update(1)
+
     def _postfix(self, bar) -> None:
-        shown = {"tested": self.n_tested} if self.count_tested else {"replayed": self.replayed}
+        shown = {"tested": self.n_tested} if self.count_tested else (
+            {"replayed": self.replayed} if self.replayed else {})
         bar.set_postfix(successes=self.successes, **shown, refresh=False)
 
     def close(self) -> None:

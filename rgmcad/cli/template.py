@@ -52,21 +52,22 @@ def configure(p) -> None:
 def run(args) -> int:
     from rgmcad.printing.template import scene_template
     from rgmcad.scene.bodies import make_scene
-    from rgmcad.scene.layout_files import read_tolerances
+    from rgmcad.scene.layout_files import read_hand_note, read_tolerances
 
     t0 = time.perf_counter()
     output_dir(args.out, "--out", files=("template.pdf", "template.svg"))
     scenario = load_scenario_arg(args)
     name, values = layout_arg(scenario, args)
-    tolerances = {}
+    tolerances, note = {}, ""
     if args.layout and args.layout not in scenario.layouts and not args.value:  # as optimised
         tolerances = read_tolerances(scenario, Path(args.layout))
+        note = read_hand_note(Path(args.layout))
     scene = make_scene(scenario, values, load_parts_of(scenario, args))
     paper = None if args.paper == "auto" else args.paper
     try:
         result = scene_template(scenario, scene, Path(args.out), tolerances=tolerances,
                                 plane=args.plane, paper=paper, overlap_mm=args.overlap,
-                                title=f"{scenario.name}, layout {name}")
+                                title=f"{scenario.name}, layout {name}", note=note)
     except OSError as exc:
         raise UsageError(str(args.out), "--out", f"cannot write the template ({exc})") \
             from None
@@ -78,7 +79,7 @@ def run(args) -> int:
             "pdf": str(result.pdf), "svg": str(result.svg),
             "plane": result.plane, "paper": result.paper, "orientation": result.orientation,
             "grid": [cols, rows], "sheets": list(result.sheet_labels), "pages": result.n_pages,
-            "empty_sheets": list(result.empty_sheets),
+            "empty_sheets": list(result.empty_sheets), "built_by_hand": note or None,
             "overlap_mm": result.overlap_mm,
             "parts": [{"name": p.name, "order": p.order,
                        "centroid_world": [float(v) for v in p.centroid_world],
@@ -103,6 +104,8 @@ def run(args) -> int:
             " they only hold their neighbours in line, and say so")
     if tolerances:
         say(f"tolerances from {args.layout}: {len(tolerances)} parameters")
+    if note:
+        say(f"on the cover: {note}")
     say(f"  {result.pdf}")
     say(f"  {result.svg}  (1:1, millimetres)")
     say("print at 100 % / actual size; check a printed sheet with: "

@@ -252,7 +252,7 @@ def cover_page_count(parts, size_mm, sheets=(), ropes=()) -> int:
 
 
 def _cover_pages(pdf, drawing, parts, info: SheetInfo, sheets, grid, title, frame, paper,
-                 orientation, overlap, empty: set[str]):
+                 orientation, overlap, empty: set[str], note: str = ""):
     w, h = info.size_mm
     pdf.new_page(w, h)
     _page_marks(pdf, info)
@@ -275,6 +275,9 @@ def _cover_pages(pdf, drawing, parts, info: SheetInfo, sheets, grid, title, fram
 
     # assembly map
     pdf.text(x0, y_top + 3.0, "Assembly map", 3.0, bold=True)
+    if note:
+        lx = x0 + text_width("Assembly map", 3.0, True) + 4.0
+        pdf.text(lx, y_top + 3.0, wrap(note, 2.4, x0 + ww - lx, False)[0], 2.4)
     box_y, box_h = _MAP_Y, _MAP_H
     u0 = min(s.region_mm[0] for s in sheets)
     v1 = max(s.region_mm[3] for s in sheets)
@@ -358,16 +361,17 @@ def _cover_pages(pdf, drawing, parts, info: SheetInfo, sheets, grid, title, fram
 def write_pdf(path: Path, title: str, drawing: Drawing, parts, frame: PlaneFrame,
               map_sheet: SheetInfo, sheets: tuple[SheetInfo, ...], grid: tuple[int, int],
               paper: str, orientation: str, overlap_mm: float,
-              empty: set[str] = frozenset()) -> int:
+              empty: set[str] = frozenset(), note: str = "") -> int:
     """Write the template's PDF; returns its number of pages. ``empty``: labels of the
-    sheets with nothing to place (:func:`empty_sheets`), which say so.
+    sheets with nothing to place (:func:`empty_sheets`), which say so; ``note``: a line
+    beside the assembly map (how often the layout works when built by hand).
 
     ``parts`` are the drawing's :class:`rgmcad.printing.drawing.PartOutline` in placement
     order; ``sheets`` the tiled sheets, numbered after :func:`cover_page_count` pages.
     """
     pdf = _Pdf(path, title)
     _cover_pages(pdf, drawing, parts, map_sheet, sheets, grid, title, frame, paper,
-                 orientation, overlap_mm, empty)
+                 orientation, overlap_mm, empty, note)
     seams = seams_of(sheets)
     for info in sheets:
         tile_page(pdf, drawing, info, seams, grid, title, paper, frame,

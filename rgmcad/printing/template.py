@@ -99,7 +99,8 @@ class TemplateResult:
 
 def make_template(parts, base_planes, out_dir, *, plane: str | None = None,
                   paper: str | None = None, orientation: str | None = None,
-                  overlap_mm: float = 12.0, title: str = "", frames=(), ropes=()) -> TemplateResult:
+                  overlap_mm: float = 12.0, title: str = "", frames=(), ropes=(),
+                  note: str = "") -> TemplateResult:
     """Write a printable 1:1 tiled assembly template of a posed layout.
 
     Parameters
@@ -170,7 +171,7 @@ def make_template(parts, base_planes, out_dir, *, plane: str | None = None,
     pdf_path, svg_path = out_dir / "template.pdf", out_dir / "template.svg"
     empty = empty_sheets(outlines, sheets, drawing.ropes)
     n_pages = write_pdf(pdf_path, title, drawing, outlines, frame, map_info, sheets,
-                        (cols, rows), paper, orientation, overlap_mm, empty)
+                        (cols, rows), paper, orientation, overlap_mm, empty, note)
     write_svg(svg_path, drawing, title, frame)
 
     centres = {"map": dict(map_info.tag_centres_mm)}
@@ -187,7 +188,7 @@ def make_template(parts, base_planes, out_dir, *, plane: str | None = None,
 
 def scene_template(scenario, scene, out_dir, *, tolerances=None, plane: str | None = None,
                    paper: str | None = None, overlap_mm: float = 12.0,
-                   title: str = "") -> TemplateResult:
+                   title: str = "", note: str = "") -> TemplateResult:
     """:func:`make_template` of a posed scene of ``scenario``, parts in placement order, with
     its ropes.
 
@@ -200,7 +201,7 @@ def scene_template(scenario, scene, out_dir, *, tolerances=None, plane: str | No
     try:
         return make_template(parts, planes, out_dir, plane=plane, paper=paper,
                              overlap_mm=overlap_mm, title=title, frames=frames,
-                             ropes=scene_ropes(scene))
+                             ropes=scene_ropes(scene), note=note)
     except RgmcadError:
         raise
     except ValueError as exc:

@@ -14,11 +14,12 @@ from pathlib import Path
 
 import numpy as np
 
+from rgmcad.runs.hand import hand_headline, hand_markdown
 from rgmcad.runs.robustness import close_in_warning, failures_line, two_rates
 from rgmcad.runs.tolerance_check import narrowed_note, tolerance_header
 from rgmcad.scene.perturbation import PhysicsRanges
 
-__all__ = ["REPORT_FILE", "SLICE_PLOT", "PROGRESS_PLOT", "ROBUSTNESS_PLOT", "ERROR_GRID",
+__all__ = ["REPORT_FILE", "SLICE_PLOT", "PROGRESS_PLOT", "ROBUSTNESS_PLOT", "HAND_PLOT", "ERROR_GRID",
            "RANGE_END", "RANGE_END_NOTE", "PARTS_MEET", "tolerance_text", "placement_lines",
            "tolerance_notes",
            "tolerance_paragraphs", "count_line", "range_end_marks", "report_markdown",
@@ -28,6 +29,7 @@ REPORT_FILE = "report.md"
 SLICE_PLOT = "probability_slice.png"
 PROGRESS_PLOT = "exploration.png"
 ROBUSTNESS_PLOT = "robustness.png"
+HAND_PLOT = "hand.png"
 ERROR_GRID = np.linspace(0.0, 10.0, 21)
 """Standard deviations of the placement errors of :func:`predicted_robustness`: mm for
 positions, degrees for angles."""
@@ -123,6 +125,7 @@ def report_markdown(scenario, s: dict, low, high) -> str:
     lines = [f"# {scenario.name}: optimised layout", "",
              f"- run: `{s['run']}` (seed {s['seed']}, budget {s['budget']})",
              f"- layout file: `{s['layout']}` (`--layout` of every command)",
+             *([f"- built by hand: **{hand_headline(s['hand'])}**"] if s.get("hand") else []),
              f"- predicted success probability: **{s['probability']:.3f}**; weakest link: "
              f"`{s['weakest_event']}`",
              f"- chosen layout: {s['source']}; verified by simulation: "
@@ -145,6 +148,7 @@ def report_markdown(scenario, s: dict, low, high) -> str:
         mark = " (weakest)" if e == s["weakest_event"] else ""
         lines.append(f"| {e}{mark} | {p:.3f} | {f.get('model', '')} | "
                      f"{', '.join(f.get('dims', [])) or '-'} |")
+    lines += hand_markdown(s.get("hand"), HAND_PLOT)
     lines += ["", "## Placement", "",
               "How far each parameter may move, alone, before the predicted success drops "
               "below 90 % of its value here (the parameter's whole range is shown for scale)"
@@ -182,7 +186,8 @@ def report_markdown(scenario, s: dict, low, high) -> str:
         for c in s["verification"]:
             lines.append(f"| {c['source']} | {c['success_rate']:.2f} | {c['valid_copies']} |")
     lines += ["", "## Plots", "", f"![probability slice]({SLICE_PLOT})", "",
-              f"![robustness]({ROBUSTNESS_PLOT})", "", f"![exploration]({PROGRESS_PLOT})", ""]
+              *([] if s.get("hand") else [f"![robustness]({ROBUSTNESS_PLOT})", ""]),
+              f"![exploration]({PROGRESS_PLOT})", ""]
     return "\n".join(lines)
 
 
@@ -421,6 +426,7 @@ def count_line(summary: dict) -> str:
     simulated each layout once per world."""
     estimate = _estimate_simulations(summary)
     extra = f" and {estimate} for the rho_g estimate" if estimate else ""
+    extra += f" and {hand['simulations']} builds by hand" if (hand := summary.get("hand")) else ""
     n, worlds = summary["simulations"], summary.get("worlds", 1)
     counted, both = f"{n} simulations", ""
     if worlds > 1:

@@ -25,7 +25,6 @@ from pathlib import Path
 import numpy as np
 
 from rgmcad.errors import ScenarioError
-from rgmcad.files import write_atomic, write_json_atomic
 from rgmcad.parts.family import family_digest
 from rgmcad.parts.store import DEFAULT_BUILD_DIR
 from rgmcad.runs.checks import (
@@ -35,37 +34,16 @@ from rgmcad.runs.checks import (
     check_workers,
 )
 from rgmcad.runs.executor import make_executor, scheduler_from_env
+from rgmcad.runs.hand import DEFAULT_HAND, HAND_SETTINGS, Hand, hand_figures
+from rgmcad.runs.outputs import LAYOUT_FILE, START_FILE, at_layout, write_outputs
 from rgmcad.runs.problem import ScenarioProblem, SimRecord, scenario_digest
-from rgmcad.runs.report import (
-    PROGRESS_PLOT,
-    REPORT_FILE,
-    ROBUSTNESS_PLOT,
-    SLICE_PLOT,
-    plot_progress,
-    plot_robustness,
-    plot_slice,
-    report_markdown,
-)
 from rgmcad.runs.starts import check_starts_valid, choose_layout, resolve_starts, starts_tag
-from rgmcad.runs.store import MODEL, SETTINGS, SIMULATIONS, RecordedProblem, RunStore, run_identity
-from rgmcad.runs.tolerance_check import (
-    BISECTIONS,
-    POINTS,
-    check_tolerances,
-    flags_of,
-    printed_step,
-    sides_of,
-    success_of,
-)
+from rgmcad.runs.store import SIMULATIONS, RecordedProblem, RunStore, run_identity
+from rgmcad.runs.tolerance_check import check_tolerances, printed_step, success_of
 from rgmcad.scene.perturbation import DEFAULT_PHYSICS, PhysicsRanges, corner_worlds
-from rgmcad.sim.run import Outcome
 
 __all__ = ["LAYOUT_FILE", "START_FILE", "RunProgress", "OptimizationRun", "default_run_dir",
            "optimize_scenario"]
-
-LAYOUT_FILE = "layout.json"
-START_FILE = "start.json"
-
 
 class RunProgress:
     """Where a workflow stands, for a progress display; every method does nothing here."""
@@ -79,6 +57,10 @@ class RunProgress:
 
     def tested(self, n: int) -> None:
         """``n`` more layouts were tested for validity."""
+
+    def built(self, record: SimRecord) -> None:
+        """One more build of a layout placed by hand was simulated (:mod:`rgmcad.runs.hand`:
+        not a layout of the run, not counted among its simulations)."""
 
 
 @dataclass(frozen=True)
@@ -129,6 +111,7 @@ def optimize_scenario(
     physics_corners: PhysicsRanges | None = None, full: bool = False,
     starts: Sequence[str] = (), centering: str | None = None,
     changes: Mapping | None = None, tolerance_check: bool = True,
+    hand: Hand | None = DEFAULT_HAND,
 ) -> OptimizationRun:
     """Optimise a scenario's layout in a run directory, or continue an interrupted run there.
 
@@ -177,6 +160,10 @@ def optimize_scenario(
         of the run's identity and default directory.
     tolerance_check : simulate each side of each printed tolerance and narrow those that fail
         (:mod:`rgmcad.runs.tolerance_check`; False: the model's, as the benchmark keeps them).
+    hand : the chosen layout's success when a person places every part with these errors,
+        under ``physics`` (:func:`~rgmcad.runs.hand.hand_figures`, as many builds as the
+        budget's :data:`~rgmcad.runs.hand.HAND_SETTINGS`, seed ``seed``): the summary's
+        ``hand``. None: not measured. Not journaled: an interrupted run redoes it.
     """
     start = time.perf_counter()
     from rgmcad.learning.settings import budget as budget_settings
@@ -259,18 +246,24 @@ def optimize_scenario(
                                       physics, progress)
                 robustness = {"samples_per_radius": robustness_samples,
                               **figures(curve, physics)}
-            at_layout = _at_layout(result.model, result, chosen,
+            model_view = at_layout(result.model, result, chosen,
                                    np.asarray(chosen["x"], dtype=float), learner_problem.validity)
             checked = None
             if tolerance_check and chosen["verified"]:  # a failing layout's mean nothing
                 progress.stage("tolerance check")
-                checked = check_tolerances(np.asarray(chosen["x"], dtype=float), at_layout[-1],
+                checked = check_tolerances(np.asarray(chosen["x"], dtype=float), model_view[-1],
                                            success_of(learner_problem), printed_step(scenario))
+            by_hand = None
+            if hand is not None:
+                by_hand = hand_figures(executor, problem, chosen["x"], hand, physics, seed,
+                                       HAND_SETTINGS.get(budget, HAND_SETTINGS["default"]),
+                                       progress)
+                by_hand = {**by_hand, "seed": seed}
         finally:
             executor.close()
-        summary = _write_outputs(scenario, store, learner_problem, result, chosen,
+        summary = write_outputs(scenario, store, learner_problem, result, chosen,
                                  time.perf_counter() - start, seed, budget, robustness,
-                                 start_vectors, at_layout, checked)
+                                 start_vectors, model_view, checked, by_hand)
     progress.stage("done")
     return OptimizationRun(run_dir, summary, False, time.perf_counter() - start)
 
@@ -289,34 +282,6 @@ def _no_folder_if_refused(run_dir: Path):
         raise
 
 
-def influence(model, x: np.ndarray) -> np.ndarray:
-    """(d,) range of the predicted success along each axis through ``x`` (d,)."""
-    t = np.linspace(0.0, 1.0, 101)
-    out = np.zeros(len(x))
-    for j in range(len(x)):
-        P = np.repeat(x[None, :], len(t), axis=0)
-        P[:, j] = t
-        p = model.success_proba(P)
-        out[j] = p.max() - p.min()
-    return out
-
-
-def _at_layout(model, result, chosen: dict, x: np.ndarray, validity):
-    """(per-event probabilities, probability, weakest requirement, its probability, (d, 2)
-    normalised tolerances) at the chosen layout: the learner's own numbers at its optimum."""
-    from rgmcad.learning import placement_tolerance
-
-    if chosen["is_optimum"]:
-        per_event, probability = dict(result.event_probabilities), result.probability
-        tol = result.tolerances
-    else:
-        per_event = {e: float(p[0]) for e, p in model.event_probabilities(x).items()}
-        probability = float(model.success_proba(x)[0])
-        tol = placement_tolerance(model, x, result.settings, validity)
-    weakest, weakest_probability = model.weakest_link(x)
-    return per_event, probability, weakest, weakest_probability, tol
-
-
 def _placed_in(summary: dict, run_dir: Path) -> dict:
     """A finished run's summary naming its files in ``run_dir`` (it may have been moved)."""
     start = {**summary.get("start", {}), "layout": str(run_dir / START_FILE)}
@@ -329,119 +294,3 @@ def _readable_json(path: Path) -> bool:
         return True
     except (OSError, ValueError):
         return False
-
-
-def _write_outputs(scenario, store, recorded, result, chosen, wall_time, seed, budget,
-                   robustness, starts, at_layout, checked) -> dict:
-    from rgmcad.learning import overlap_ends, range_ends
-    from rgmcad.scene.design_space import bounds
-    from rgmcad.scene.layout_files import layout_document
-
-    run_dir = store.directory
-    model = result.model
-    x = np.asarray(chosen["x"], dtype=float)
-    low, high = bounds(scenario)
-    validity = recorded.problem.validity  # here, in this process: the pool is closed
-    per_event, probability, weakest, weakest_probability, model_tol = at_layout
-    tol = model_tol if checked is None else checked.tolerances
-
-    def real(t):
-        return {f.name: [float(t[j, 0] * (high[j] - low[j])), float(t[j, 1] * (high[j] - low[j]))]
-                for j, f in enumerate(scenario.free)}
-
-    tolerances = real(tol)
-    narrowed = (np.zeros((len(x), 2), bool) if checked is None else checked.narrowed)
-    check = None if checked is None else {
-        "points_per_side": POINTS, "halvings": BISECTIONS, "simulations": checked.simulations,
-        "narrowed": sides_of(narrowed, scenario), "model_tolerances": real(model_tol)}
-    spread = influence(model, x)
-    store.save_model(model)
-    layout = write_json_atomic(run_dir / LAYOUT_FILE, layout_document(
-        scenario, x, probability=probability, event_probabilities=per_event,
-        weakest_event=weakest, tolerances=tolerances, source=chosen["source"],
-        verified=chosen["verified"]))
-    start = write_json_atomic(run_dir / START_FILE, layout_document(
-        scenario, result.x_start, probability=float(result.probability_start),
-        source="the explored sample with the highest predicted success (start of the "
-               "refinement)"))
-    # what the run store holds: each distinct layout simulated once, verification included
-    # (the learner's evaluations count a repeated vector, or a stored one, again)
-    stored = list(store.records.values())
-    n_success = sum(r.outcome is Outcome.SUCCESS for r in stored)
-    summary = {
-        "scenario": scenario.name,
-        "run": str(run_dir),
-        "layout": str(layout),
-        "vector": [float(v) for v in x],
-        "values": {f.name: float(v) for f, v in zip(scenario.free, low + x * (high - low),
-                                                     strict=True)},
-        "probability": probability,
-        "event_probabilities": per_event,
-        "weakest_event": weakest,
-        "weakest_probability": weakest_probability,
-        "tolerances": tolerances,
-        "tolerance_check": check,
-        # what stops a side the simulations kept: the range, or parts meeting
-        "range_ends": sides_of(flags_of(range_ends(x, model_tol)) & ~narrowed, scenario),
-        "overlap_ends": sides_of(flags_of(overlap_ends(x, model_tol, result.settings, validity))
-                               & ~narrowed, scenario),
-        "influence": {f.name: float(v) for f, v in zip(scenario.free, spread, strict=True)},
-        "verified": chosen["verified"],
-        "source": chosen["source"],
-        "starts": {name: [float(u) for u in v] for name, v in (starts or {}).items()},
-        "optimum": {"vector": [float(v) for v in result.x], "probability": result.probability,
-                    "outcome": chosen["optimum_outcome"]},
-        "start": {"layout": str(start), "vector": [float(v) for v in result.x_start],
-                  "probability": float(result.probability_start)},
-        "optimization": {"objective_start": result.optimization.objective_start,
-                         "objective": result.optimization.objective,
-                         "evaluations": result.optimization.n_evaluations,
-                         "status": result.optimization.status},
-        "simulations": len(stored),
-        **({"worlds": len(recorded.physics_worlds)} if recorded.physics_worlds else {}),
-        "evaluations": result.n_total_simulations + chosen["n_simulations"]
-        + (checked.simulations if checked else 0),
-        "simulations_by_stage": {**result.n_simulations, **chosen["by_stage"],
-                                 **({"tolerance check": checked.simulations} if checked else {})},
-        "exploration": result.exploration_summary(),
-        "verification": chosen["candidates"],
-        "centering": chosen["centering"], "second_look": chosen["second_look"],
-        **{k: chosen[k] for k in ("more_looks", "close_in") if k in chosen},
-        "verify_noise": result.settings.verify_noise, "error_radius": result.settings.error_radius,
-        "race_stages": chosen["race_stages"], "verify_samples": result.settings.verify_samples,
-        "robustness": robustness,
-        "successes": int(n_success),
-        "discarded": result.n_discarded,
-        "simulated_now": recorded.n_simulated,
-        "replayed": max(len(stored) - recorded.n_simulated, 0),
-        "simulation_seconds": float(sum(r.seconds for r in store.records.values())),
-        "wall_time": wall_time,
-        "factors": {e: _factor(scenario, result, e) for e in model.events},
-        "seed": seed,
-        "budget": budget,
-        "model_sha256": store.model_sha256,
-        "files": {"layout": LAYOUT_FILE, "start": START_FILE, "report": REPORT_FILE,
-                  "slice_plot": SLICE_PLOT, "progress_plot": PROGRESS_PLOT,
-                  "robustness_plot": ROBUSTNESS_PLOT, "model": MODEL,
-                  "simulations": SIMULATIONS, "settings": SETTINGS},
-    }
-    plot_slice(scenario, model, x, spread, run_dir / SLICE_PLOT, validity)
-    plot_robustness(scenario, model, x, run_dir / ROBUSTNESS_PLOT)
-    plot_progress(result, run_dir / PROGRESS_PLOT)
-    write_atomic(run_dir / REPORT_FILE, report_markdown(scenario, summary, low, high))
-    store.write_result(summary)  # last: its presence marks the run finished
-    return summary
-
-
-def _factor(scenario, result, event) -> dict:
-    m = result.model.models[event]
-    names = [f.name for f in scenario.free]
-    out = {"model": getattr(m, "reason", None) or "svm",
-           "dims": [names[j] for j in m.dims_] if not m.is_constant else []}
-    a = result.analyses.get(event)
-    if a is not None:
-        out.update(samples=a.n_samples, success_rate=None if np.isnan(a.success_rate)
-                   else a.success_rate, quasi_deterministic=a.quasi_deterministic)
-    if event in result.accuracy:
-        out["accuracy"] = [float(v) for v in result.accuracy[event]]
-    return out

@@ -112,6 +112,17 @@ def layout_document(scenario, x, **extra) -> dict:
     }
 
 
+def read_hand_note(path: Path) -> str:
+    """A layout file's ``built_by_hand`` line (how often it works when built by hand, as the
+    optimiser measured it): printable characters only, at most 200; "" when absent or not a
+    string."""
+    data = _read(path)
+    note = data.get("built_by_hand") if isinstance(data, dict) else None
+    if not isinstance(note, str):
+        return ""
+    return "".join(c for c in note if c.isprintable())[:200]
+
+
 def read_tolerances(scenario, path: Path) -> dict[str, tuple[float, float]]:
     """``{"object.component": (down, up)}`` from a layout file's ``tolerances`` table.
 

@@ -51,7 +51,7 @@ from rgmcad.scene.model import FRAME, Scenario
 
 __all__ = ["PhysicsRanges", "PhysicsDraw", "PhysicsCorner", "DEFAULT_PHYSICS",
            "PLACEMENT_SCALES", "parse_physics_ranges", "corner_worlds", "layout_draw",
-           "hand_placed_objects"]
+           "hand_placed_objects", "placement_groups"]
 
 _STEP = 1e-3
 _PHYSICS_STREAM = 0x5048_5953  # keeps physics draws apart from any placement stream
@@ -168,6 +168,10 @@ class PhysicsDraw:
     ranges: PhysicsRanges
     seed: int
     index: int
+    moved: frozenset[str] | None = None
+    """The objects a hand misplaces (None: every hand-placed object); the others stay where
+    designed. An object's offsets do not depend on which others move (common random numbers:
+    draw ``index`` of one part alone is that part's offsets in the full draw ``index``)."""
 
     def factors(self, body: str) -> tuple[float, float, float]:
         """(friction, mass, restitution) factors of the rigid body named ``body``."""
@@ -195,6 +199,8 @@ class PhysicsDraw:
         attempts = attempts or {}
         out = {}
         for name in movable:
+            if self.moved is not None and name not in self.moved:
+                continue
             attempt = min(int(attempts.get(name, 0)), len(PLACEMENT_SCALES) - 1)
             key = (_HAND_STREAM, int(self.index), zlib.crc32(name.encode()), attempt)
             u = np.random.default_rng(np.random.SeedSequence(int(self.seed), spawn_key=key))
@@ -267,6 +273,17 @@ def hand_placed_objects(scenario: Scenario, infinite: Iterable[str] = ()) -> lis
             skip.add(name)
     return [obj.name for obj in scenario.objects.values()
             if obj.part != FRAME and obj.name not in skip]
+
+
+def placement_groups(scenario: Scenario, infinite: Iterable[str] = ()) -> dict[str, list[str]]:
+    """:func:`hand_placed_objects` as a maker names them: the objects placed in one frame
+    (a domino run's dominoes) under the frame's name, every other object under its own."""
+    groups: dict[str, list[str]] = {}
+    for name in hand_placed_objects(scenario, infinite):
+        parent = scenario.objects[name].parent
+        frame = parent is not None and scenario.objects[parent].part == FRAME
+        groups.setdefault(parent if frame else name, []).append(name)
+    return groups
 
 
 def _perturbed(body: SceneBody, factors: tuple[float, float, float]) -> SceneBody:

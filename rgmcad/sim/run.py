@@ -163,6 +163,8 @@ def _placed_by_hand(scenario, values, parts, physics: PhysicsDraw, designed: Sce
     draw; objects whose bodies intersect drawn again (smaller and smaller, at last where
     designed) until nothing does."""
     movable = hand_placed_objects(scenario, [n for n, p in parts.items() if p.infinite])
+    if physics.moved is not None:
+        movable = [name for name in movable if name in physics.moved]
     placed = set(movable)
     attempts = dict.fromkeys(movable, 0)
     last = len(PLACEMENT_SCALES) - 1

@@ -15,7 +15,9 @@ from html import escape
 from pathlib import Path
 
 from rgmcad.parts.store import DEFAULT_BUILD_DIR
+from rgmcad.runs.hand import hand_headline, weak_link_lines
 from rgmcad.runs.report import (
+    HAND_PLOT,
     PROGRESS_PLOT,
     ROBUSTNESS_PLOT,
     SLICE_PLOT,
@@ -40,6 +42,10 @@ TEMPLATE_FILES = ("template/template.pdf", "template.pdf")
 """Where the report looks for the printable template, relative to the run directory."""
 
 _FIGURES = (
+    (HAND_PLOT, "Success when a person builds it, by simulation: every part placed at random "
+     "within the stated error of its printed place (the heading's error in proportion), the "
+     "physical errors on top; 95 % bands. The square is the stated hand, with the most "
+     "builds."),
     (SLICE_PLOT, "Predicted probability of success through the layout (star) along the two "
      "parameters it depends on most, the others held at the layout's values; contours at "
      "50 % and 90 %. Grey: the parts overlap there (nothing can be built, and the model, "
@@ -87,7 +93,11 @@ def _overview(s: dict, result) -> str:
     weakest = s["weakest_event"]
     weakest_p = s.get("weakest_probability", s["event_probabilities"].get(weakest, 1.0))
     stages = ", ".join(f"{escape(k)} {v}" for k, v in s["simulations_by_stage"].items())
-    return (f"<ul><li>predicted probability of success: <b>{s['probability']:.3f}</b>; "
+    hand = "" if not s.get("hand") else (
+        f"<li>built by hand: <b>{escape(hand_headline(s['hand']))}</b><br>"
+        + "<br>".join(escape(line.strip()) for line in weak_link_lines(s["hand"], most=3))
+        + "</li>")
+    return (f"<ul>{hand}<li>predicted probability of success: <b>{s['probability']:.3f}</b>; "
             f"weakest link: <code>{escape(str(weakest))}</code> ({weakest_p:.3f})</li>"
             f"<li>this layout simulated now: <b>{escape(result.outcome.value)}</b> "
             f"({result.n_success} of {len(result.events)} events); chosen as "
@@ -170,8 +180,8 @@ def _figures(run_dir: Path) -> str:
     out = []
     for name, caption in _FIGURES:
         path = run_dir / name
-        if not path.is_file():
-            continue
+        if not path.is_file() or (name == ROBUSTNESS_PLOT and (run_dir / HAND_PLOT).is_file()):
+            continue  # the model's guess under errors, where nothing was simulated
         data = base64.b64encode(path.read_bytes()).decode("ascii")
         out.append(f'<figure><img src="data:image/png;base64,{data}" alt="{escape(name)}">'
                    f"<figcaption>{escape(caption)}</figcaption></figure>")

@@ -1,0 +1,202 @@
+"""How often a layout works when a person builds it (rgmcad.runs.hand): the headline a maker
+reads, in millimetres and degrees, by simulation; sequential, on common draws; the same
+whatever the ranges typed in the file; its weak links the parts that break the machine."""
+
+import json
+import re
+from pathlib import Path
+
+import numpy as np
+import pypdfium2 as pdfium
+import pytest
+
+from rgmcad.runs.executor import SerialExecutor
+from rgmcad.runs.hand import (
+    HAND_SETTINGS,
+    Hand,
+    hand_figures,
+    measure_rate,
+    parse_hand,
+    weak_links,
+)
+from rgmcad.runs.problem import ScenarioProblem, SimRecord
+from rgmcad.scene.design_space import vector_from_values
+from rgmcad.scene.layout_files import resolve_layout
+from rgmcad.scene.perturbation import PhysicsDraw, PhysicsRanges, placement_groups
+from rgmcad.sim.run import Outcome
+from tests._support import cli_output
+
+ROOT = Path(__file__).resolve().parent.parent
+SIMPLE = str(ROOT / "scenarios" / "simple.toml")
+BALLRUN = str(ROOT / "scenarios" / "ballrun.toml")
+
+
+def _record(success: bool) -> SimRecord:
+    return SimRecord(True, Outcome.SUCCESS if success else Outcome.FAILURE,
+                     {"e": (success, 0.1)}, 0.0)
+
+
+class _Coin:
+    """A fake ``simulate``: draw ``k`` succeeds where ``works(k, moved)``; remembers draws."""
+
+    def __init__(self, works):
+        self.works, self.draws = works, []
+
+    def __call__(self, draws):
+        self.draws += draws
+        return [_record(self.works(d.index, d.moved)) for d in draws]
+
+
+def test_the_rate_stops_as_soon_as_its_interval_is_narrow_enough():
+    always = _Coin(lambda k, moved: True)
+    rate = measure_rate(always, Hand(), None, 0, precision=0.05, batch=32, minimum=64)
+    assert (rate.samples, rate.successes) == (64, 64)  # [0.94, 1]: narrow at the minimum
+    assert (rate.high - rate.low) / 2 <= 0.05
+    assert [d.index for d in always.draws] == list(range(64))  # draws 0, 1, ...: common
+    half = _Coin(lambda k, moved: k % 2 == 0)
+    rate = measure_rate(half, Hand(), None, 0, precision=0.05, batch=32, maximum=320)
+    assert rate.samples == 320 and rate.rate == 0.5  # never that narrow: the most allowed
+    assert rate.low < 0.5 < rate.high
+    mostly = _Coin(lambda k, moved: k % 10 != 0)
+    rate = measure_rate(mostly, Hand(), None, 0, precision=0.05, batch=32, maximum=320)
+    assert rate.samples < 320 and (rate.high - rate.low) / 2 <= 0.05
+    assert measure_rate(_Coin(lambda k, m: k % 10 != 0), Hand(), None, 0) == rate
+
+
+def test_weak_links_draw_more_only_for_the_parts_that_failed():
+    groups = {"sturdy": ["a"], "fragile": ["b"], "run": ["c1", "c2"]}
+    coin = _Coin(lambda k, moved: not ("b" in moved and k % 2) and not ("c1" in moved and k == 5))
+    links = weak_links(coin, groups, Hand(), 0, first=8, most=32)
+    by_name = {w.name: w for w in links}
+    assert [w.name for w in links] == ["fragile", "run", "sturdy"]
+    assert by_name["sturdy"].rate.samples == 8  # never failed: no more draws
+    assert by_name["fragile"].rate.samples == by_name["run"].rate.samples == 32
+    assert by_name["fragile"].rate.successes == 16 and by_name["run"].rate.successes == 31
+    assert by_name["run"].objects == ("c1", "c2")
+    assert {d.moved for d in coin.draws} == {frozenset(g) for g in groups.values()}
+    assert all(d.ranges.friction == d.ranges.mass == 0 for d in coin.draws)  # physics as is
+
+
+def test_a_part_misplaced_alone_is_where_the_full_draw_put_it():
+    ranges = PhysicsRanges(position=0.002, heading=2.0)
+    full = PhysicsDraw(ranges, 3, 7).offsets(["a", "b", "c"])
+    alone = PhysicsDraw(ranges, 3, 7, frozenset({"b"})).offsets(["a", "b", "c"])
+    assert set(alone) == {"b"} and np.array_equal(alone["b"], full["b"])
+    assert all(abs(o[0]) <= 0.002 and abs(o[1]) <= 0.002 and abs(o[3]) <= 2.0
+               for o in full.values())
+
+
+@pytest.mark.parametrize("text, key", [("2", "'2'"), ("2mm,x", "'x'"), ("-1mm", "mm"),
+                                       ("99deg", "deg"), ("nanmm", "mm")])
+def test_a_hand_is_read_in_millimetres_and_degrees(text, key):
+    from rgmcad.errors import UsageError
+
+    with pytest.raises(UsageError, match=re.escape(key)):
+        parse_hand(text)
+    assert parse_hand("3mm, 1.5deg") == Hand(3.0, 1.5) and parse_hand("1deg") == Hand(2.0, 1.0)
+
+
+@pytest.mark.parametrize("extra, flag", [(["--hand", "2"], "--hand"),
+                                         (["--precision", "0"], "--precision"),
+                                         (["--samples", "5"], "--samples")])
+def test_evaluate_refuses_a_bad_hand_in_one_line(extra, flag, tmp_path):
+    code, out, err = cli_output(["evaluate", SIMPLE, "--layout", "solved", *extra,
+                                 "--out", str(tmp_path / "h.png")])
+    assert code == 2 and not out and len(err.strip().splitlines()) == 1 and flag in err
+    assert not (tmp_path / "h.png").exists()
+
+
+def test_a_layout_whose_parts_overlap_is_refused_in_one_line(tmp_path):
+    layout = tmp_path / "sunk.json"
+    layout.write_text(json.dumps({"scenario": "simple", "vector": [0.5, 0.0, 0.5]}))
+    code, out, err = cli_output(["evaluate", SIMPLE, "--layout", str(layout), "--workers", "1"])
+    assert code == 2 and len(err.strip().splitlines()) == 1 and "overlap" in err
+
+
+def _evaluate(tmp_path, scenario, *extra):
+    code, out, _ = cli_output(["evaluate", scenario, "--layout", "solved", "--workers", "1",
+                               "--out", str(tmp_path / "h.png"), "--json", *extra])
+    assert code == 0
+    return json.loads(out)
+
+
+def test_evaluate_states_how_often_a_built_layout_works(tmp_path):
+    result = _evaluate(tmp_path, SIMPLE)
+    head = result["hand"]
+    assert (head["position_mm"], head["heading_deg"]) == (2.0, 2.0)
+    assert head["physics"] == PhysicsRanges().to_json()  # physical errors on by default
+    low, high = head["interval"]
+    assert low <= head["rate"] <= high and head["rate"] == head["successes"] / head["samples"]
+    assert (high - low) / 2 <= result["precision"] or head["samples"] == 320
+    sizes = [c["position_mm"] for c in result["hand_curve"]]
+    assert sizes == [0, 1, 2, 3, 5, 7, 10]
+    assert [c["heading_deg"] for c in result["hand_curve"]] == sizes  # 1 degree per mm
+    assert result["hand_curve"][2] == head  # the headline is the curve's point at 2 mm
+    assert (tmp_path / "h.png").stat().st_size > 0
+    names = {w["name"] for w in result["weak_links"]}
+    assert names == {"ball", "track", "run"}  # the floor is an infinite plane: not placed
+    code, out, _ = cli_output(["evaluate", SIMPLE, "--layout", "solved", "--workers", "1",
+                               "--out", str(tmp_path / "h2.png"), "--hand", "4mm,1deg"])
+    assert code == 0
+    assert re.search(r"works \d+ % \[\d+, \d+\] of the time when each part is placed within "
+                     r"\+-4 mm and \+-1 degrees", out)
+    assert "+-10.0 mm, +- 2.5 deg" in out.replace("+-2.5", "+- 2.5")  # the hand's ratio kept
+
+
+def test_a_range_typed_twice_as_wide_changes_rho_g_but_not_the_hand_figure(tmp_path):
+    wide = tmp_path / "simple.toml"
+    wide.write_text(Path(SIMPLE).read_text().replace("free = { x = [-0.15, 0.0],",
+                                                     "free = { x = [-0.30, 0.0],"))
+    narrow_hand, wide_hand = (_evaluate(tmp_path, s, "--precision", "0.2")["hand"]
+                              for s in (SIMPLE, str(wide)))
+    assert narrow_hand == wide_hand  # the same builds: every part within 2 mm of its place
+    narrow_rho, wide_rho = (_evaluate(tmp_path, s, "--rho-g", "--samples", "2")
+                            for s in (SIMPLE, str(wide)))
+    assert narrow_rho["vector"] != wide_rho["vector"]  # the same layout, other coordinates
+    assert narrow_rho["curve"] != wide_rho["curve"]  # and other neighbourhoods
+
+
+def test_the_weak_link_named_is_the_part_that_breaks_the_machine():
+    problem = ScenarioProblem(BALLRUN)
+    context = problem.context()
+    _, values = resolve_layout(context.scenario, "solved", None)
+    x = vector_from_values(context.scenario, values)
+    figures = hand_figures(SerialExecutor(problem.context), problem, x, Hand(), None, 0,
+                           HAND_SETTINGS["small"])
+    weakest = figures["weak_links"][0]
+    assert weakest["successes"] < weakest["samples"]
+    groups = placement_groups(context.scenario,
+                              [n for n, p in context.parts.items() if p.infinite])
+    others = frozenset(o for name, g in groups.items() if name != weakest["name"] for o in g)
+    ranges = Hand().ranges(None)
+    n = 48
+
+    def works(moved):
+        return sum(context.simulate_one(x, True, PhysicsDraw(ranges, 0, k, moved)).outcome
+                   is Outcome.SUCCESS for k in range(n)) / n
+
+    # every other part misplaced, the weak link put exactly: it works clearly more often than
+    # when only the weak link is misplaced
+    assert works(others) >= weakest["successes"] / weakest["samples"] + 0.2
+
+
+def test_optimize_states_the_hand_figure_in_its_summary_report_and_template(tmp_path):
+    run = tmp_path / "run"
+    code, out, _ = cli_output(["optimize", SIMPLE, "--budget", "small", "--run", str(run),
+                               "--workers", "1"])
+    assert code in (0, 1)
+    summary = json.loads((run / "result.json").read_text())
+    hand = summary["hand"]
+    assert hand["hand"]["samples"] >= 16 and hand["seed"] == 0
+    assert summary["simulations_by_stage"]["hand"] == hand["simulations"]
+    assert "built by hand: works" in out and f"{hand['simulations']} builds by hand" in out
+    assert "## Built by hand" in (run / "report.md").read_text()
+    assert (run / "hand.png").stat().st_size > 0
+    assert "built by hand: <b>works" in (run / "report.html").read_text()
+    note = json.loads((run / "layout.json").read_text())["built_by_hand"]
+    code, out, _ = cli_output(["template", SIMPLE, "--layout", str(run / "layout.json"),
+                               "--out", str(tmp_path / "t"), "--json"])
+    assert code == 0 and json.loads(out)["built_by_hand"] == note
+    cover = pdfium.PdfDocument(str(tmp_path / "t" / "template.pdf"))[0]
+    text = cover.get_textpage().get_text_range()
+    assert note.split(" (")[0] in " ".join(text.split())
