@@ -171,7 +171,7 @@ def test_optimize_reports_both_robustness_figures(tmp_path):
                               "--workers", "1", "--run", str(tmp_path / "run")])
     estimate = robustness["simulations"] + robustness["physics"]["simulations"]
     assert code == 0 and estimate == 2 * 30
-    assert f"replayed) and {estimate} for the rho_g estimate in" in out
+    assert f"replayed) and {estimate} for the rho_g estimate and " in out
 
 
 @pytest.mark.parametrize("argv, flag", [

@@ -64,3 +64,38 @@ def test_every_printed_tolerance_holds_at_its_bound_in_simulation(tmp_path):
             code, said, _ = cli_output(["-q", "simulate", "simple", "--layout", layout,
                                         "--value", f"{name}={to!r}"])
             assert code == 0 and "outcome: success" in said, (name, moved, said)
+
+
+def test_a_side_that_stops_against_a_part_names_that_part():
+    from rgmcad.runs.problem import ScenarioContext
+    from rgmcad.runs.tolerance_check import pushed_against
+
+    context = ScenarioContext.load("scenarios/simple.toml")
+    try:
+        low, high = 0.0, 0.5  # track.z: sunk into the floor at 0, standing at 0.5
+        assert not context.validity(np.array([[0.5, low, 0.5]]))[0]
+        while high - low > 1e-4:
+            mid = (low + high) / 2
+            low, high = (low, mid) if context.validity(np.array([[0.5, mid, 0.5]]))[0] \
+                else (mid, high)
+        x = np.array([0.5, high + 0.01, 0.5])  # 1 % of the range above touching the floor
+        tol = np.full((3, 2), 0.005)
+        tol[1, 0] = 0.01
+        flags = np.zeros((3, 2), bool)
+        flags[1] = True  # asked about both sides of track.z: only the lower meets a part
+        got = pushed_against(context, x, tol, flags, past=0.002)
+        assert got == {"track.z": {"low": "floor"}}
+    finally:
+        context.close()
+
+
+def test_a_side_against_a_part_is_printed_as_a_push():
+    from rgmcad.runs.report import placement_lines
+
+    s = {"tolerances": {"track.z": [0.001, 0.0123]}, "values": {"track.z": 0.05},
+         "overlap_ends": {"track.z": "low"}, "push_against": {"track.z": {"low": "floor"}},
+         "tolerance_check": {"points_per_side": 4, "halvings": 4, "simulations": 8,
+                             "narrowed": {}, "model_tolerances": {}},
+         "verified": True, "probability": 0.9}
+    line = next(line for line in placement_lines(s) if "track.z" in line)
+    assert line.endswith("push against the floor / +12.3")

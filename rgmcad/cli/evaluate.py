@@ -81,7 +81,7 @@ def run(args) -> int:
         say(json.dumps(result))
         return 0
     if not args.rho_g:
-        from rgmcad.runs.hand import hand_headline, hand_table, weak_link_lines
+        from rgmcad.runs.hand_text import hand_headline, hand_table, weak_link_lines
 
         say(f"{result['scenario']}, layout {result['layout']}: {hand_headline(result)}; "
             f"{result['simulations']} simulations in {result['wall_time']:.0f} s")

@@ -113,7 +113,7 @@ def show(summary: dict, as_json: bool, wall_time: float | None = None) -> None:
     weakest = summary["weakest_event"]
     say(f"{summary['scenario']}: {summary['layout']}")
     if summary.get("hand"):
-        from rgmcad.runs.hand import hand_headline, weak_link_lines
+        from rgmcad.runs.hand_text import hand_headline, weak_link_lines
 
         say("\n".join([f"built by hand: {hand_headline(summary['hand'])}",
                        *weak_link_lines(summary["hand"], most=3)]))

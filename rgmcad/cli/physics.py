@@ -53,9 +53,13 @@ def physics_draw_arg(args):
 
 
 def add_robustness_arg(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--robustness", type=int, metavar="N", help="estimate the layout's rho_g "
-                   "from N layouts per radius, under placement errors and under placement plus "
-                   "--physics errors; 0 to 1000 (default 5; 0 with --budget small: skipped)")
+    p.add_argument("--hand", default="2mm,2deg", help="how far from its printed place a "
+                   "person puts each part, e.g. 3mm,1deg (default 2mm,2deg): the final choice "
+                   "keeps the finalist that works most often built so, with the --physics "
+                   "errors on top, and the summary says how often; 'off': neither")
+    p.add_argument("--robustness", type=int, metavar="N", help="also estimate the layout's "
+                   "rho_g (Table 1) from N layouts per radius, under placement errors and under "
+                   "placement plus --physics errors; 0 to 1000 (default 0: skipped)")
     add_physics_arg(p)
     p.add_argument("--physics-noise", action="store_true", help="learn with noisy labels: "
                    "every learning simulation with its own draw of the --physics errors "
@@ -78,13 +82,13 @@ def robustness_arg(args) -> int:
     from rgmcad.runs.checks import check_range
 
     if args.robustness is None:
-        return 0 if args.budget == "small" else 5
+        return 0
     return check_range(args.robustness, 0, 1000, "--robustness", "a number of layouts per radius")
 
 
 def robustness_options(args) -> dict:
-    """``optimize_scenario``'s ``robustness_samples``, ``physics``, ``physics_noise`` and
-    ``physics_corners``."""
+    """``optimize_scenario``'s ``robustness_samples``, ``physics``, ``hand``, ``physics_noise``
+    and ``physics_corners``."""
     from rgmcad.errors import UsageError
 
     ranges = physics_arg(args)
@@ -96,7 +100,10 @@ def robustness_options(args) -> dict:
     if args.physics_noise and args.physics_corners:
         raise UsageError("--physics-corners", "", "learns with exact labels at the ends of "
                          "the ranges; --physics-noise with noisy ones: expected one of them")
-    return {"robustness_samples": robustness_arg(args), "physics": ranges,
+    from rgmcad.runs.hand import parse_hand
+
+    hand = None if args.hand.strip() == "off" else parse_hand(args.hand)
+    return {"robustness_samples": robustness_arg(args), "physics": ranges, "hand": hand,
             "physics_noise": ranges if args.physics_noise else None,
             "physics_corners": ranges if args.physics_corners else None}
 

@@ -21,8 +21,8 @@ from rgmcad.runs.hand import (
     Hand,
     check_precision,
     hand_figures,
-    plot_hand,
 )
+from rgmcad.runs.hand_text import plot_hand
 from rgmcad.runs.problem import ScenarioProblem, validity_task
 from rgmcad.runs.workflow import RunProgress
 from rgmcad.scene.perturbation import DEFAULT_PHYSICS, PhysicsRanges

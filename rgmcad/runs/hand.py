@@ -39,9 +39,9 @@ from rgmcad.scene.perturbation import PhysicsDraw, PhysicsRanges, placement_grou
 from rgmcad.sim.run import Outcome
 
 __all__ = ["Hand", "DEFAULT_HAND", "HandRate", "WeakLink", "HandSettings", "HAND_SETTINGS",
-           "parse_hand", "measure_rate", "hand_curve", "weak_links", "hand_figures", "plot_hand",
-           "check_precision", "CURVE_MM", "rate_text", "hand_headline", "hand_table",
-           "weak_link_lines", "hand_markdown", "hand_note"]
+           "parse_hand", "measure_rate", "hand_curve", "hand_race", "Builds", "chosen_by_hand", "weak_links",
+           "hand_figures",
+           "check_precision", "CURVE_MM", "rate_text"]
 
 CURVE_MM = (0.0, 1.0, 2.0, 3.0, 5.0, 7.0, 10.0)
 """Sizes of a hand's position errors (mm) on the curve."""
@@ -146,52 +146,6 @@ def rate_text(rate: float, low: float, high: float) -> str:
             f"{math.ceil(high * 100):.0f}]")
 
 
-def hand_headline(figures: dict) -> str:
-    """The headline of :func:`hand_figures`' output: "works 93 % [90, 95] of the time when
-    each part is placed within +-2 mm and +-2 degrees, with friction +-20%, ... (297 of 320
-    builds simulated)"."""
-    h = figures["hand"]
-    physics = "" if h["physics"] is None else \
-        f", with {PhysicsRanges(**h['physics']).describe()}"
-    return (f"works {rate_text(h['rate'], *h['interval'])} of the time when each part is "
-            f"placed within +-{h['position_mm']:g} mm and +-{h['heading_deg']:g} degrees"
-            f"{physics} ({h['successes']} of {h['samples']} builds simulated)")
-
-
-def hand_note(figures: dict) -> str:
-    """The headline in a line a template's cover has room for."""
-    h = figures["hand"]
-    return (f"built by hand: works {rate_text(h['rate'], *h['interval'])} of the time with "
-            f"each part within +-{h['position_mm']:g} mm and +-{h['heading_deg']:g} deg"
-            + ("" if h["physics"] is None else ", physical errors on")
-            + f" ({h['samples']} builds simulated)")
-
-
-def hand_table(figures: dict) -> list[tuple[str, str, str]]:
-    """The curve as rows (hand's error, works, builds)."""
-    return [(f"+-{c['position_mm']:.1f} mm, +-{c['heading_deg']:.1f} deg",
-             rate_text(c["rate"], *c["interval"]), f"of {c['samples']}")
-            for c in figures["hand_curve"]]
-
-
-def weak_link_lines(figures: dict, most: int = 5) -> list[str]:
-    """The weak links, most fragile first, or one line saying there are none."""
-    h, links = figures["hand"], figures["weak_links"]
-    weak = [w for w in links if w["successes"] < w["samples"]]
-    if not weak:
-        return [f"weak links: none; no part misplaced alone broke the machine "
-                f"({sum(w['samples'] for w in links)} simulations)"]
-    out = [f"weak links (one part misplaced within +-{h['position_mm']:g} mm and "
-           f"+-{h['heading_deg']:g} deg, the rest exact, physics unperturbed):"]
-    for w in weak[:most]:
-        many = f" ({len(w['objects'])} parts)" if len(w["objects"]) > 1 else ""
-        out.append(f"  {w['name']}{many}: fails {w['samples'] - w['successes']} of "
-                   f"{w['samples']}")
-    if len(weak) > most:
-        out.append(f"  and {len(weak) - most} more")
-    return out
-
-
 Simulate = Callable[[Sequence[PhysicsDraw]], list[SimRecord]]
 
 
@@ -243,6 +197,67 @@ def hand_curve(simulate: Simulate, hand: Hand, physics: PhysicsRanges | None, se
     return out
 
 
+_DROP_Z = 2.5  # a finalist this many paired standard errors below the leader is dropped
+
+
+def hand_race(simulate_at: Callable[[int, Sequence[PhysicsDraw]], list[SimRecord]],
+              n_candidates: int, hand: Hand, physics: PhysicsRanges | None, seed: int, *,
+              first: int = 32, most: int = 320) -> tuple[int, list[HandRate]]:
+    """The candidate (index) that works most often under ``hand`` and ``physics``: all meet
+    the same draws (``simulate_at(i, draws)``: candidate ``i``'s records), ``first`` of them,
+    then twice as many, up to ``most``; after each stage a candidate whose paired deficit to
+    the leader is over ``_DROP_Z`` standard errors is dropped. Of those left, the highest rate
+    wins; a tie goes to the earlier candidate. Returns (winner, each candidate's rate over the
+    draws it met)."""
+    ranges = hand.ranges(physics)
+    wins: list[list[bool]] = [[] for _ in range(n_candidates)]
+    records: list[list[SimRecord]] = [[] for _ in range(n_candidates)]
+    alive = list(range(n_candidates))
+    target = min(first, most)
+    while True:
+        for i in alive:
+            have = len(records[i])
+            new = simulate_at(i, [PhysicsDraw(ranges, seed, k) for k in range(have, target)])
+            records[i] += new
+            wins[i] += [r.outcome is Outcome.SUCCESS for r in new]
+        leader = max(alive, key=lambda i: (np.mean(wins[i]), -i))
+        kept = []
+        for i in alive:
+            diff = np.asarray(wins[leader], float) - np.asarray(wins[i], float)
+            se = diff.std(ddof=1) / np.sqrt(len(diff)) if len(diff) > 1 else 0.0
+            if i == leader or diff.mean() <= 0.0 or (se > 0.0 and diff.mean() <= _DROP_Z * se):
+                kept.append(i)
+        alive = kept
+        if len(alive) == 1 or target >= most:
+            break
+        target = min(2 * target, most)
+    winner = max(alive, key=lambda i: (np.mean(wins[i]), -i))
+    return winner, [_rate(hand, physics, r) for r in records]
+
+
+def chosen_by_hand(chosen: dict, builds: Builds, hand: Hand, physics: PhysicsRanges | None,
+                   seed: int, settings: HandSettings) -> dict:
+    """``chosen`` (:func:`~rgmcad.runs.starts.choose_layout`'s choice) replaced by the finalist
+    that works most often when built by ``hand`` (:func:`hand_race`, its builds on ``builds``),
+    with ``hand_choice``: each finalist's rate and the one kept."""
+    finalists = chosen["finalists"]
+    before = builds.simulations
+    winner, rates = hand_race(lambda i, draws: builds(finalists[i]["x"], draws),
+                              len(finalists), hand, physics, seed, first=settings.batch,
+                              most=settings.maximum)
+    out = {**chosen, "hand_choice": {
+        "candidates": [{"source": f["source"], "rate": r.rate, "interval": [r.low, r.high],
+                        "samples": r.samples} for f, r in zip(finalists, rates, strict=True)],
+        "kept": finalists[winner]["source"], "simulations": builds.simulations - before}}
+    if winner:
+        won, first = rates[winner], rates[0]
+        out.update(x=finalists[winner]["x"], is_optimum=finalists[winner]["source"] == "optimum",
+                   source=f"{finalists[winner]['source']}, chosen over {chosen['source']} by "
+                   f"simulated builds by hand ({won.successes} of {won.samples} worked, against "
+                   f"{first.successes} of {first.samples})")
+    return out
+
+
 @dataclass(frozen=True)
 class WeakLink:
     """A part (or a run of dominoes, ``objects``) misplaced alone: how often the layout
@@ -282,20 +297,27 @@ def weak_links(simulate: Simulate, groups: dict[str, list[str]], hand: Hand, see
     return sorted(links, key=lambda w: (w.rate.rate, -w.rate.samples))
 
 
-def hand_markdown(figures: dict | None, plot: str) -> list[str]:
-    """The "Built by hand" section of a run's report (none without figures)."""
-    if not figures:
-        return []
-    lines = ["", "## Built by hand", "",
-             "Every part (free or fixed, each domino too) placed at random around its printed "
-             "place and simulated, the physical errors on top; a part that would land inside "
-             f"another is placed again. The layout {hand_headline(figures)}; "
-             "`rgmcad evaluate --hand` measures another hand.", "",
-             "| each part within | works (95 % interval) | builds |", "|---|---|---|"]
-    lines += [f"| {a} | {b} | {c[3:]} |" for a, b, c in hand_table(figures)]
-    lines += ["", *(f"- {line.strip()}" if line.startswith("  ") else line
-                    for line in weak_link_lines(figures)), "", f"![built by hand]({plot})"]
-    return lines
+class Builds:
+    """Simulated builds of layouts on an executor (whose context is the scenario's), each
+    (layout, draw) once: the final choice's draws of the layout it keeps are its headline's
+    first draws, not simulated again. ``progress.built`` is told of each new one."""
+
+    def __init__(self, executor, progress=None):
+        self.executor, self.progress = executor, progress
+        self.done: dict = {}
+        self.simulations = 0
+
+    def __call__(self, x, draws: Sequence[PhysicsDraw]) -> list[SimRecord]:
+        x = np.asarray(x, dtype=float)
+        key = x.tobytes()
+        new = [d for d in dict.fromkeys(draws) if (key, d) not in self.done]
+        for draw, record in zip(new, self.executor.map_context(
+                simulate_layout_task, [(x, True, d) for d in new]), strict=True):
+            self.done[key, draw] = record
+            self.simulations += 1
+            if self.progress is not None:
+                self.progress.built(record)
+        return [self.done[key, d] for d in draws]
 
 
 @dataclass(frozen=True)
@@ -323,7 +345,7 @@ HAND_SETTINGS = {"tiny": HandSettings(0.2, 8, 8, 16, 4, 2, 4),
 def hand_figures(executor, problem: ScenarioProblem, x, hand: Hand,
                  physics: PhysicsRanges | None, seed: int,
                  settings: HandSettings = HAND_SETTINGS["default"], progress=None,
-                 name: str = "layout") -> dict:
+                 name: str = "layout", builds: Builds | None = None) -> dict:
     """The figures of this module for the layout ``x`` (normalised, valid), simulated on
     ``executor`` (whose context is ``problem``'s), progress told to ``progress`` (a
     :class:`~rgmcad.runs.workflow.RunProgress`):
@@ -335,17 +357,12 @@ def hand_figures(executor, problem: ScenarioProblem, x, hand: Hand,
     if not bool(problem.validity(x[None])[0]):
         raise UsageError("--layout", name, "its parts overlap where designed, so no hand can "
                          "place it; `rgmcad simulate` names the parts")
-    count = [0]
+    builds = builds or Builds(executor, progress)
+    before = builds.simulations
     s = settings
 
     def simulate(draws):
-        out = []
-        for record in executor.map_context(simulate_layout_task, [(x, True, d) for d in draws]):
-            out.append(record)
-            if progress is not None:
-                progress.built(record)
-        count[0] += len(out)
-        return out
+        return builds(x, draws)
 
     def stage(title, total):
         if progress is not None:
@@ -363,7 +380,8 @@ def hand_figures(executor, problem: ScenarioProblem, x, hand: Hand,
     links = weak_links(simulate, groups, hand, seed, first=s.weak_first, most=s.weak_most)
     end = time.perf_counter()
     return {"hand": rate.to_json(), "hand_curve": [c.to_json() for c in curve],
-            "weak_links": [w.to_json() for w in links], "simulations": count[0],
+            "weak_links": [w.to_json() for w in links],
+            "simulations": builds.simulations - before,
             "precision": s.precision,
             "seconds": {"hand": curve_at - start, "hand_curve": weak_at - curve_at,
                         "weak_links": end - weak_at}}
@@ -376,39 +394,3 @@ def check_precision(value, where: str) -> float:
         raise UsageError(where, str(value), "expected a half-width from 0.005 to 0.5 (0.05: "
                          "the rate to +-5 points)")
     return float(value)
-
-
-def plot_hand(figures: dict, path, title: str = "") -> None:
-    """Success rate against the size of a hand's position errors (heading in proportion),
-    with 95 % bands; the measured hand marked (matplotlib, Agg)."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    curve = figures["hand_curve"]
-    mm = [c["position_mm"] for c in curve]
-    fig, ax = plt.subplots(figsize=(6, 4), dpi=120)
-    (line,) = ax.plot(mm, [c["rate"] * 100 for c in curve], marker="o")
-    ax.fill_between(mm, [c["interval"][0] * 100 for c in curve],
-                    [c["interval"][1] * 100 for c in curve], color=line.get_color(), alpha=0.2,
-                    lw=0)
-    head = figures["hand"]
-    ax.errorbar([head["position_mm"]], [head["rate"] * 100], fmt="s", color="black",
-                yerr=[[100 * (head["rate"] - head["interval"][0])],
-                      [100 * (head["interval"][1] - head["rate"])]],
-                label=f"+-{head['position_mm']:g} mm, +-{head['heading_deg']:g} deg: "
-                      f"{head['samples']} builds")
-    degrees = head["heading_deg"] / head["position_mm"] if head["position_mm"] else 0.0
-    ax.set_xlabel(f"hand's error: +- mm along x and y (and +-{degrees:.2g} deg per mm)")
-    ax.set_ylabel("works, % of builds")
-    ax.set_ylim(0, 102)
-    ax.set_xlim(0, max(mm))
-    ax.grid(alpha=0.3)
-    ax.legend(loc="lower left", fontsize=8)
-    if title:
-        ax.set_title(title, fontsize=10)
-    fig.tight_layout()
-    fig.savefig(path)
-    plt.close(fig)
-

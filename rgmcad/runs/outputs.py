@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 
 from rgmcad.files import write_atomic, write_json_atomic
-from rgmcad.runs.hand import hand_note, plot_hand
+from rgmcad.runs.hand_text import hand_note, plot_hand
 from rgmcad.runs.report import (
     HAND_PLOT,
     PROGRESS_PLOT,
@@ -20,7 +20,7 @@ from rgmcad.runs.report import (
     report_markdown,
 )
 from rgmcad.runs.store import MODEL, SETTINGS, SIMULATIONS
-from rgmcad.runs.tolerance_check import BISECTIONS, POINTS, flags_of, sides_of
+from rgmcad.runs.tolerance_check import BISECTIONS, POINTS, flags_of, pushed_against, sides_of
 from rgmcad.sim.run import Outcome
 
 __all__ = ["LAYOUT_FILE", "START_FILE", "at_layout", "influence", "write_outputs"]
@@ -80,12 +80,18 @@ def write_outputs(scenario, store, recorded, result, chosen, wall_time, seed, bu
     check = None if checked is None else {
         "points_per_side": POINTS, "halvings": BISECTIONS, "simulations": checked.simulations,
         "narrowed": sides_of(narrowed, scenario), "model_tolerances": real(model_tol)}
+    meet = flags_of(overlap_ends(x, model_tol, result.settings, validity)) & ~narrowed
+    s = result.settings
+    push = {} if checked is None else pushed_against(
+        recorded.problem.context(), x, model_tol, meet,
+        2.0 * s.tolerance_step / 2 ** s.tolerance_bisections)
     spread = influence(model, x)
     store.save_model(model)
     layout = write_json_atomic(run_dir / LAYOUT_FILE, layout_document(
         scenario, x, probability=probability, event_probabilities=per_event,
         weakest_event=weakest, tolerances=tolerances, source=chosen["source"],
-        verified=chosen["verified"], **({"built_by_hand": hand_note(by_hand)} if by_hand else {})))
+        verified=chosen["verified"], push_against=push,
+        **({"built_by_hand": hand_note(by_hand)} if by_hand else {})))
     start = write_json_atomic(run_dir / START_FILE, layout_document(
         scenario, result.x_start, probability=float(result.probability_start),
         source="the explored sample with the highest predicted success (start of the "
@@ -109,8 +115,9 @@ def write_outputs(scenario, store, recorded, result, chosen, wall_time, seed, bu
         "tolerance_check": check,
         # what stops a side the simulations kept: the range, or parts meeting
         "range_ends": sides_of(flags_of(range_ends(x, model_tol)) & ~narrowed, scenario),
-        "overlap_ends": sides_of(flags_of(overlap_ends(x, model_tol, result.settings, validity))
-                               & ~narrowed, scenario),
+        "overlap_ends": sides_of(meet, scenario),
+        # a side that stops where parts meet, simulated at its bound: push the part there
+        "push_against": push,
         "influence": {f.name: float(v) for f, v in zip(scenario.free, spread, strict=True)},
         "verified": chosen["verified"],
         "source": chosen["source"],
@@ -126,12 +133,16 @@ def write_outputs(scenario, store, recorded, result, chosen, wall_time, seed, bu
         "simulations": len(stored),
         **({"worlds": len(recorded.physics_worlds)} if recorded.physics_worlds else {}),
         "evaluations": result.n_total_simulations + chosen["n_simulations"]
-        + (checked.simulations if checked else 0) + (by_hand["simulations"] if by_hand else 0),
+        + (checked.simulations if checked else 0) + (by_hand["simulations"] if by_hand else 0)
+        + (chosen["hand_choice"]["simulations"] if "hand_choice" in chosen else 0),
         "simulations_by_stage": {**result.n_simulations, **chosen["by_stage"],
                                  **({"tolerance check": checked.simulations} if checked else {}),
+                                 **({"choice by hand": chosen["hand_choice"]["simulations"]}
+                                    if "hand_choice" in chosen else {}),
                                  **({"hand": by_hand["simulations"]} if by_hand else {})},
         "exploration": result.exploration_summary(),
         "verification": chosen["candidates"],
+        **({"hand_choice": chosen["hand_choice"]} if "hand_choice" in chosen else {}),
         "centering": chosen["centering"], "second_look": chosen["second_look"],
         **{k: chosen[k] for k in ("more_looks", "close_in") if k in chosen},
         "verify_noise": result.settings.verify_noise, "error_radius": result.settings.error_radius,

@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-from rgmcad.runs.hand import hand_headline, hand_markdown
+from rgmcad.runs.hand_text import hand_headline, hand_markdown
 from rgmcad.runs.robustness import close_in_warning, failures_line, two_rates
 from rgmcad.runs.tolerance_check import narrowed_note, tolerance_header
 from rgmcad.scene.perturbation import PhysicsRanges
@@ -23,7 +23,8 @@ __all__ = ["REPORT_FILE", "SLICE_PLOT", "PROGRESS_PLOT", "ROBUSTNESS_PLOT", "HAN
            "RANGE_END", "RANGE_END_NOTE", "PARTS_MEET", "tolerance_text", "placement_lines",
            "tolerance_notes",
            "tolerance_paragraphs", "count_line", "range_end_marks", "report_markdown",
-           "plot_slice", "plot_progress", "plot_robustness", "predicted_robustness", "user_scale"]
+           "plot_slice", "plot_progress", "plot_robustness", "predicted_robustness", "user_scale",
+           "side_texts"]
 
 REPORT_FILE = "report.md"
 SLICE_PLOT = "probability_slice.png"
@@ -79,6 +80,18 @@ def range_end_marks(s: dict, name: str) -> tuple[str, str]:
     return marks[0], marks[1]
 
 
+def side_texts(s: dict, name: str, k: float) -> tuple[str, str]:
+    """A parameter's tolerance down and up as printed (``k``: to mm or degrees): "-2.3",
+    "+4.0 (end of range)", or, where the part stops against another and was simulated
+    there, "push against the floor" (no number: pushing a part against its neighbour is
+    the easiest placement a hand makes)."""
+    marks, push = range_end_marks(s, name), (s.get("push_against") or {}).get(name, {})
+    return tuple(f"push against the {push[side]}" if side in push else
+                 f"{sign}{tolerance_text(value * k)}{mark}"
+                 for side, sign, value, mark in zip(("low", "high"), "-+", s["tolerances"][name],
+                                                    marks, strict=True))
+
+
 ROUGH_MODEL = 0.5
 """A layout that succeeded in simulation but that the model rates below this: the model is
 rough there, and so are the tolerances it gives."""
@@ -109,12 +122,11 @@ def tolerance_notes(s: dict) -> list[str]:
 def placement_lines(s: dict) -> list[str]:
     """A run's placement tolerances as ``rgmcad optimize`` prints them (mm and degrees)."""
     lines = [tolerance_header(s) + ":"]
-    for name, (down, up) in s["tolerances"].items():
+    for name in s["tolerances"]:
         angle = name.split(".")[-1] in ("heading", "pitch", "roll")
         k, unit = (1.0, "deg") if angle else (1000.0, "mm")
-        low_end, high_end = range_end_marks(s, name)
         lines.append(f"  {name:24s} {s['values'][name] * k:8.1f} {unit:3s}  "
-                     f"-{tolerance_text(down * k)}{low_end} / +{tolerance_text(up * k)}{high_end}")
+                     + " / ".join(side_texts(s, name, k)))
     lines += [f"note: {note}" for note in tolerance_notes(s)]
     return lines
 
@@ -159,11 +171,9 @@ def report_markdown(scenario, s: dict, low, high) -> str:
               "|---|---|---|---|---|"]
     for j, f in enumerate(scenario.free):
         k, unit = user_scale(f)
-        down, up = s["tolerances"][f.name]
-        low_end, high_end = range_end_marks(s, f.name)
-        lines.append(f"| {f.name} | {s['values'][f.name] * k:.1f} {unit} | {tolerance_text(down * k)}"
-                     f"{low_end} | {tolerance_text(up * k)}{high_end} | [{low[j] * k:.1f}, "
-                     f"{high[j] * k:.1f}] |")
+        down, up = (text.lstrip("+-") for text in side_texts(s, f.name, k))
+        lines.append(f"| {f.name} | {s['values'][f.name] * k:.1f} {unit} | {down} | {up} | "
+                     f"[{low[j] * k:.1f}, {high[j] * k:.1f}] |")
     for paragraph in tolerance_paragraphs(s):
         lines += ["", paragraph]
     if s.get("verification"):

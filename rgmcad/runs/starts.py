@@ -159,7 +159,14 @@ def choose_layout(recorded, result, starts: dict[str, np.ndarray] | None = None,
             final = sound
             source = (f"{sound.source}, kept by the knife-edge screen: {' and '.join(passed_over)}"
                       f" failed at a layout within 1/300 of itself")
+    # what the final choice by hand picks from: the layout kept, then the race's others that
+    # succeeded where placed and were not passed over by the knife-edge screen
+    passed = set(screen["passed_over"]) if screen else set()
+    finalists = [final] + ([t for t in {id(t): t for t in (c, *v.runners_up)}.values()
+                            if t is not final and t.outcome == "success"
+                            and t.source not in passed] if v.verified else [])
     return {"x": final.x, "source": source, "verified": v.verified,
+            "finalists": [{"source": t.source, "x": t.x} for t in finalists],
             "is_optimum": final.source == "optimum" and not final.centered,
             "optimum_outcome": optimum.value,
             "n_simulations": v.n_simulations + n_look + n_screen,

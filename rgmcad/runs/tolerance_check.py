@@ -22,7 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 
 __all__ = ["POINTS", "BISECTIONS", "CheckedTolerances", "check_tolerances", "printed_step",
-           "sides_of", "flags_of", "success_of",
+           "sides_of", "flags_of", "success_of", "pushed_against",
            "narrowed_note", "tolerance_header"]
 
 POINTS = 4
@@ -137,6 +137,41 @@ def sides_of(flags: np.ndarray, scenario) -> dict[str, str]:
     """``{parameter: "low" | "high" | "both"}`` of the flagged sides of (d, 2) bool."""
     return {f.name: "both" if lo and hi else "low" if lo else "high"
             for f, (lo, hi) in zip(scenario.free, flags, strict=True) if lo or hi}
+
+
+def pushed_against(context, x: np.ndarray, tolerances: np.ndarray, flags: np.ndarray,
+                   past: float) -> dict[str, dict[str, str]]:
+    """``{parameter: {"low" | "high": object}}``: for each flagged side (where moving the
+    parameter ``past`` beyond its tolerance makes parts overlap), the part it then runs into
+    (the deepest overlap with a part the parameter does not move). ``context``: the run's
+    :class:`~rgmcad.runs.problem.ScenarioContext`."""
+    from rgmcad.scene.bodies import make_scene
+    from rgmcad.sim.validity import check_validity
+
+    scenario = context.scenario
+    out: dict[str, dict[str, str]] = {}
+    for j, f in enumerate(scenario.free):
+        moved = {f.object} | _descendants(scenario, f.object)
+        for k, side in enumerate(("low", "high")):
+            if not flags[j, k]:
+                continue
+            p = np.array(x, dtype=float)
+            p[j] = np.clip(p[j] + (-1.0, 1.0)[k] * (tolerances[j, k] + past), 0.0, 1.0)
+            scene = make_scene(scenario, context.values(p), context.parts)
+            hits = []
+            for overlap in check_validity(scene, cache=context.cache).overlaps:
+                owners = [scene.bodies[b].object if b in scene.bodies else b
+                          for b in (overlap.first, overlap.second)]
+                if sum(o in moved for o in owners) == 1:
+                    hits.append((overlap.depth, next(o for o in owners if o not in moved)))
+            if hits:
+                out.setdefault(f.name, {})[side] = max(hits)[1]
+    return out
+
+
+def _descendants(scenario, name: str) -> set[str]:
+    children = {o.name for o in scenario.objects.values() if o.parent == name}
+    return children.union(*(_descendants(scenario, c) for c in children))
 
 
 def flags_of(sides: list[str | None]) -> np.ndarray:

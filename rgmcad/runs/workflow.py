@@ -34,7 +34,14 @@ from rgmcad.runs.checks import (
     check_workers,
 )
 from rgmcad.runs.executor import make_executor, scheduler_from_env
-from rgmcad.runs.hand import DEFAULT_HAND, HAND_SETTINGS, Hand, hand_figures
+from rgmcad.runs.hand import (
+    DEFAULT_HAND,
+    HAND_SETTINGS,
+    Builds,
+    Hand,
+    chosen_by_hand,
+    hand_figures,
+)
 from rgmcad.runs.outputs import LAYOUT_FILE, START_FILE, at_layout, write_outputs
 from rgmcad.runs.problem import ScenarioProblem, SimRecord, scenario_digest
 from rgmcad.runs.starts import check_starts_valid, choose_layout, resolve_starts, starts_tag
@@ -236,6 +243,11 @@ def optimize_scenario(
             with jobs_on(executor):  # the second look fits the models again
                 chosen = choose_layout(learner_problem, result, start_vectors, seed,
                                        on_stage=progress.stage)
+            hand_settings = HAND_SETTINGS.get(budget, HAND_SETTINGS["default"])
+            builds = Builds(executor, progress)
+            if hand is not None and len(chosen["finalists"]) > 1:  # the maker's measure decides
+                progress.stage("choice by hand", len(chosen["finalists"]) * hand_settings.maximum)
+                chosen = chosen_by_hand(chosen, builds, hand, physics, seed, hand_settings)
             robustness = None
             if robustness_samples:
                 from rgmcad.runs.robustness import figures, robustness_on
@@ -256,8 +268,7 @@ def optimize_scenario(
             by_hand = None
             if hand is not None:
                 by_hand = hand_figures(executor, problem, chosen["x"], hand, physics, seed,
-                                       HAND_SETTINGS.get(budget, HAND_SETTINGS["default"]),
-                                       progress)
+                                       hand_settings, progress, builds=builds)
                 by_hand = {**by_hand, "seed": seed}
         finally:
             executor.close()

@@ -15,15 +15,14 @@ from html import escape
 from pathlib import Path
 
 from rgmcad.parts.store import DEFAULT_BUILD_DIR
-from rgmcad.runs.hand import hand_headline, weak_link_lines
+from rgmcad.runs.hand_text import hand_headline, weak_link_lines
 from rgmcad.runs.report import (
     HAND_PLOT,
     PROGRESS_PLOT,
     ROBUSTNESS_PLOT,
     SLICE_PLOT,
-    range_end_marks,
+    side_texts,
     tolerance_paragraphs,
-    tolerance_text,
     user_scale,
 )
 from rgmcad.runs.store import RESULT
@@ -153,14 +152,16 @@ def _placement(scenario, s: dict, low, high) -> str:
     n_tight = 0
     for j, f in enumerate(scenario.free):
         k, unit = user_scale(f)
-        down, up = (v * k for v in s["tolerances"][f.name])
-        tight = min(down, up) < (TIGHT_DEG if unit == "deg" else TIGHT_MM)
+        texts = side_texts(s, f.name, k)
+        pushed = [t.startswith("push") for t in texts]
+        tight = any(v * k < (TIGHT_DEG if unit == "deg" else TIGHT_MM) and not p
+                    for v, p in zip(s["tolerances"][f.name], pushed, strict=True))
         n_tight += tight
-        low_end, high_end = range_end_marks(s, f.name)
+        down, up = (escape(t).replace("-", "&minus;", 1) if not p else escape(t)
+                    for t, p in zip(texts, pushed, strict=True))
         rows.append(f'<tr class="{"tight" if tight else ""}"><td><code>{escape(f.name)}</code>'
                     f"{' (tight)' if tight else ''}</td><td>{s['values'][f.name] * k:.1f} "
-                    f"{unit}</td><td>&minus;{tolerance_text(down)}{low_end}</td>"
-                    f"<td>+{tolerance_text(up)}{high_end}</td>"
+                    f"{unit}</td><td>{down}</td><td>{up}</td>"
                     f"<td>{low[j] * k:.1f} to {high[j] * k:.1f}</td></tr>")
     note = "".join(f"<p>{escape(n)}</p>" for n in tolerance_paragraphs(s))
     return ("<h2>Placement tolerances</h2><p>How far each part may be misplaced, one "
