@@ -99,3 +99,17 @@ def test_a_side_against_a_part_is_printed_as_a_push():
          "verified": True, "probability": 0.9}
     line = next(line for line in placement_lines(s) if "track.z" in line)
     assert line.endswith("push against the floor / +12.3")
+
+
+def test_the_template_says_push_where_the_layout_file_does(tmp_path):
+    layout = tmp_path / "layout.json"
+    layout.write_text(json.dumps({
+        "scenario": "simple", "vector": [0.5, 0.5, 0.5],
+        "tolerances": {"track.z": [0.001, 0.0123], "track.x": [0.002, 0.002]},
+        "push_against": {"track.z": {"low": "floor"}, "track.x": {"high": "nowhere"}}}))
+    code, out, _ = cli_output(["template", "scenarios/simple.toml", "--layout", str(layout),
+                               "--out", str(tmp_path / "t"), "--json"])
+    assert code == 0
+    notes = next(p["notes"] for p in json.loads(out)["parts"] if p["name"] == "track")
+    assert "z +12.3 mm; below: push against the floor" in notes
+    assert "x ± 2 mm" in notes  # a part the scenario lacks: a plain tolerance

@@ -111,14 +111,23 @@ def _number(v: float, down: bool = True) -> str:
 
 
 def format_tolerance(label: str, component: str, down: float, up: float,
-                     room: tuple[float, float] | None = None) -> str:
+                     room: tuple[float, float] | None = None, push: dict | None = None) -> str:
     """``"x ± 3 mm"``, ``"x -2/+4 mm"`` or ``"roll ± 2°"`` from metres or degrees.
 
     ``room`` is the distance from the value to each end of its range: a side whose
-    tolerance reaches it is not limited by the model, and is printed so.
+    tolerance reaches it is not limited by the model, and is printed so. ``push``:
+    ``{"low" | "high": part}``, the sides where the part is pushed against another (and
+    works there): printed so, without a number.
     """
     angle = component in ANGLE_KEYS
     factor, unit = (1.0, "°") if angle else (1000.0, " mm")
+    if push:
+        words = {"low": "below", "high": "above"}
+        sides = [f"{words[side]}: push against the {part}" for side, part in push.items()]
+        if len(push) == 2:
+            return f"{label}: " + "; ".join(sides)
+        other = _number((up if "low" in push else down) * factor)
+        return f"{label} {'+' if 'low' in push else '-'}{other}{unit}; {sides[0]}"
     # the optimiser reports exactly the room left where the model shows no drop
     free = [room is not None and r > 0 and abs(t - r) <= 1e-6 * max(1.0, r) for t, r in zip(
         (down, up), room or (0.0, 0.0), strict=True)]
@@ -148,24 +157,25 @@ def _rooms(scenario, values) -> dict[str, tuple[float, float]]:
             for f, v in zip(scenario.free, np.asarray(values, float), strict=True)}
 
 
-def part_tolerances(scenario, obj_name: str, tolerances, rooms=None) -> tuple[str, ...]:
+def part_tolerances(scenario, obj_name: str, tolerances, rooms=None,
+                    push=None) -> tuple[str, ...]:
     """Notes for the body of object ``obj_name``: its own parameters (``x ± 3 mm``)."""
-    rooms = rooms or {}
+    rooms, push = rooms or {}, push or {}
     notes = []
     for component in POSE_KEYS:
         key = f"{obj_name}.{component}"
         if key in tolerances:
             notes.append(format_tolerance(component, component, *tolerances[key],
-                                          rooms.get(key)))
+                                          rooms.get(key), push.get(key)))
     return tuple(notes)
 
 
-def frame_notes(scenario, scene, tolerances, rooms=None) -> list[FrameNote]:
+def frame_notes(scenario, scene, tolerances, rooms=None, push=None) -> list[FrameNote]:
     """A :class:`FrameNote` per frame with tolerances: translations as they are, angles also
     as the displacement of the frame's farthest part (mm) that the angle makes."""
     from rgmcad.scene.design_space import world_poses
 
-    rooms = rooms or {}
+    rooms, push = rooms or {}, push or {}
     poses = world_poses(scenario, scene.values)
     out = []
     for name, obj in scenario.objects.items():
@@ -185,8 +195,9 @@ def frame_notes(scenario, scene, tolerances, rooms=None) -> list[FrameNote]:
         pts = np.concatenate(below) if below else pose[:3, 3][None]
         for c in keys:
             down, up = tolerances[f"{name}.{c}"]
-            text = format_tolerance(c, c, down, up, rooms.get(f"{name}.{c}"))
-            if c in ANGLE_KEYS and "not limiting" not in text:
+            text = format_tolerance(c, c, down, up, rooms.get(f"{name}.{c}"),
+                                    push.get(f"{name}.{c}"))
+            if c in ANGLE_KEYS and "not limiting" not in text and "push" not in text:
                 axis = pose[:3, {"heading": 2, "pitch": 0, "roll": 1}[c]]
                 d = pts - pose[:3, 3]
                 reach = float(np.max(np.linalg.norm(d - np.outer(d @ axis, axis), axis=1)))
@@ -217,12 +228,13 @@ def placement_order(scenario, scene) -> list[str]:
     return sorted(keys, key=keys.__getitem__)
 
 
-def template_inputs(scenario, scene, tolerances=None):
+def template_inputs(scenario, scene, tolerances=None, push=None):
     """``(parts, base_planes, frames)`` of a posed scene, parts in placement order.
 
     ``tolerances`` maps ``"object.component"`` to ``(down, up)`` in metres or degrees (see
     the module docstring); a part's own go into its ``tolerances``, a frame's into a
-    :class:`FrameNote`.
+    :class:`FrameNote`; ``push`` maps some of them to ``{"low" | "high": part}``, the sides
+    where the part is pushed against another instead.
     """
     tolerances = tolerances or {}
     rooms = _rooms(scenario, getattr(scene, "values", None))
@@ -236,7 +248,8 @@ def template_inputs(scenario, scene, tolerances=None):
         run = getattr(scenario.objects[body.object], "run", None)
         parts.append(PlacedPart(body.name, order[body.name], body.world_vertices(),
                                 np.asarray(body.built.faces), pose,
-                                part_tolerances(scenario, body.object, tolerances, rooms),
+                                part_tolerances(scenario, body.object, tolerances, rooms,
+                                                push),
                                 pose[:3, 0].copy() if run else None))
     parts.sort(key=lambda p: p.order)
-    return parts, planes, frame_notes(scenario, scene, tolerances, rooms)
+    return parts, planes, frame_notes(scenario, scene, tolerances, rooms, push)

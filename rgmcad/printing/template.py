@@ -188,16 +188,17 @@ def make_template(parts, base_planes, out_dir, *, plane: str | None = None,
 
 def scene_template(scenario, scene, out_dir, *, tolerances=None, plane: str | None = None,
                    paper: str | None = None, overlap_mm: float = 12.0,
-                   title: str = "", note: str = "") -> TemplateResult:
+                   title: str = "", note: str = "", push=None) -> TemplateResult:
     """:func:`make_template` of a posed scene of ``scenario``, parts in placement order, with
     its ropes.
 
     ``tolerances`` (``{"object.component": (down, up)}``, metres or degrees) are printed
-    beside the parts (see :mod:`rgmcad.printing.inputs`). A plane the scenario lacks, an
+    beside the parts (see :mod:`rgmcad.printing.inputs`), as pushes against a part where
+    ``push`` (``{"object.component": {"low" | "high": part}}``) says so. A plane the scenario lacks, an
     overlap out of range or a drawing too big for the paper raise :class:`ScenarioError`
     naming the scenario file.
     """
-    parts, planes, frames = template_inputs(scenario, scene, tolerances)
+    parts, planes, frames = template_inputs(scenario, scene, tolerances, push)
     try:
         return make_template(parts, planes, out_dir, plane=plane, paper=paper,
                              overlap_mm=overlap_mm, title=title, frames=frames,

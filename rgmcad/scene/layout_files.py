@@ -123,6 +123,20 @@ def read_hand_note(path: Path) -> str:
     return "".join(c for c in note if c.isprintable())[:200]
 
 
+def read_push_against(scenario, path: Path) -> dict[str, dict[str, str]]:
+    """A layout file's ``push_against`` table (``{"object.component": {"low" | "high":
+    object}}``, as the optimiser writes it): only entries naming a free parameter and an
+    object of ``scenario``; others are left out (they only change words on a template)."""
+    data = _read(path)
+    table = data.get("push_against") if isinstance(data, dict) else None
+    if not isinstance(table, dict):
+        return {}
+    free = {f.name for f in scenario.free}
+    return {key: {side: part for side, part in sides.items()
+                  if side in ("low", "high") and part in scenario.objects}
+            for key, sides in table.items() if key in free and isinstance(sides, dict)}
+
+
 def read_tolerances(scenario, path: Path) -> dict[str, tuple[float, float]]:
     """``{"object.component": (down, up)}`` from a layout file's ``tolerances`` table.
 
