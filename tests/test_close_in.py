@@ -104,7 +104,7 @@ def test_optimize_with_the_screen_says_what_it_did_and_otherwise_is_the_same_run
     def run(name, **kw):
         summary = optimize_scenario(scenario_path("simple"), seed=0,
                                     settings=budget("small").replace(**kw),
-                                    run_dir=tmp_path / name, workers=1).summary
+                                    run_dir=tmp_path / name, workers=1, hand=None).summary
         layout = json.loads((tmp_path / name / "layout.json").read_text())["vector"]
         assert layout == summary["vector"]
         return summary, (tmp_path / name / "report.md").read_text()

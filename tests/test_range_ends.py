@@ -84,10 +84,12 @@ def test_a_tolerance_stops_where_parts_would_meet_and_says_so(tmp_path):
     assert 0.0297 <= x - down <= 0.0305 and 0.2095 <= x + up <= 0.2103, (x - down, x + up)
     assert summary["overlap_ends"] == {"crate.x": "both"}
     line = next(ln for ln in out.splitlines() if ln.strip().startswith("crate.x"))
-    assert f"-{_down(down * 1000)} (parts meet) / +{_down(up * 1000)} (parts meet)" in line
-    assert "note: a tolerance marked 'parts meet'" in out
+    # pushed against a post, the crate works: no number, where to push
+    assert line.endswith("push against the left_post / push against the post")
+    assert summary["push_against"] == {"crate.x": {"low": "left_post", "high": "post"}}
+    assert "note: 'push against the X'" in out and "parts meet" not in out
     for name in ("report.md", "report.html"):
-        assert f"{_down(up * 1000)} (parts meet)" in (run / name).read_text(), name
+        assert "push against the post" in (run / name).read_text(), name
     layout = str(run / "layout.json")
     for to, code_expected, word in ((x + up - 0.0005, 0, "success"), (x + up + 0.0005, 1,
                                     "invalid"), (x - down + 0.0005, 0, "success"),
@@ -95,13 +97,13 @@ def test_a_tolerance_stops_where_parts_would_meet_and_says_so(tmp_path):
         code, out, _ = cli_output(["-q", "simulate", str(scenario), "--layout", layout,
                                    "--value", f"crate.x={to}"])
         assert code == code_expected and f"outcome: {word}" in out, out
-    # the printed template gives the numbers, not "not limiting within the range"
+    # the printed template says where to push, not "not limiting within the range"
     code, _, err = cli_output(["template", str(scenario), "--layout", layout, "--out",
                                str(tmp_path / "tpl"), "-q"])
     assert code == 0, err
     svg = (tmp_path / "tpl" / "template.svg").read_text()
-    mm = [_down(t * 1000).rstrip("0").rstrip(".") for t in (down, up)]
-    assert f"x -{mm[0]}/+{mm[1]} mm" in svg and "not limiting" not in svg
+    assert ("x: below: push against the left_post; above: push against the post" in svg
+            and "not limiting" not in svg)
 
 
 def test_tolerances_of_a_rough_model_come_with_a_caution():

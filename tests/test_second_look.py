@@ -165,7 +165,7 @@ def test_optimize_says_what_the_second_look_did_and_returns_that_layout(tmp_path
 
     # (the small budget's run keeps the refined layout: 0.00 -> 0.40 at 8 errors, measured)
     run = optimize_scenario(scenario_path("simple"), seed=0, settings=budget("small"),
-                            run_dir=tmp_path, workers=1)
+                            run_dir=tmp_path, workers=1, hand=None)
     look, s = run.summary["second_look"], run.summary
     assert look is not None and look["simulations"] == s["simulations_by_stage"]["second look"]
     assert sum(s["simulations_by_stage"].values()) == s["evaluations"]
@@ -186,7 +186,7 @@ def test_optimize_says_what_the_second_look_did_and_returns_that_layout(tmp_path
     # off, the run is the one before the second look, and its directory is another run's
     plain = optimize_scenario(scenario_path("simple"), seed=0,
                               settings=TINY.replace(second_look=False), run_dir=tmp_path / "off",
-                              workers=1)
+                              workers=1, hand=None)
     assert plain.summary["second_look"] is None
     assert "second look" not in plain.summary["simulations_by_stage"]
     assert "second_look" not in json.loads((tmp_path / "off" / "settings.json").read_text())[
@@ -204,10 +204,10 @@ def test_looks_go_on_while_they_move_the_layout_and_the_first_is_the_same(tmp_pa
     from rgmcad.shipped import scenario_path
 
     one = optimize_scenario(scenario_path("simple"), seed=0, settings=budget("small"),
-                            run_dir=tmp_path / "one", workers=1).summary
+                            run_dir=tmp_path / "one", workers=1, hand=None).summary
     run = optimize_scenario(scenario_path("simple"), seed=0,
                             settings=budget("small").replace(second_look_rounds=4),
-                            run_dir=tmp_path / "four", workers=1).summary
+                            run_dir=tmp_path / "four", workers=1, hand=None).summary
     assert one["second_look"]["kept"]  # measured: 0.00 -> 0.40 (else this test tests nothing)
     assert run["second_look"] == one["second_look"]
     looks = [run["second_look"], *run.get("more_looks", [])]

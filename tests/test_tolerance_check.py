@@ -34,7 +34,17 @@ def test_a_side_the_model_got_wrong_is_narrowed_to_where_it_still_succeeds():
         p[j] += t[j, k] if k else -t[j, k]
         assert succeeds(p[None])[0]
         assert edge - 0.3 / 64 <= t[j, k] <= edge + 1e-12, (j, k, t[j, k])
-    assert got.simulations == sum(calls) == 4 * 4 + 3 * 4
+    assert got.simulations == sum(calls) == 4 * 4 + 3 * 4 + 4 * 2  # and 2 a hair from each
+
+
+def test_a_bound_a_hair_from_a_failure_steps_in_until_both_hairs_succeed():
+    def succeeds(P):  # fails only in a band 0.05 to 0.15 steps beyond the model's bound
+        return ~((P[:, 0] > 0.80005) & (P[:, 0] < 0.80015))
+
+    got = check_tolerances(np.array([0.5]), np.array([[0.2, 0.3]]), succeeds, step=0.001)
+    assert got.tolerances[0].tolist() == pytest.approx([0.2, 0.299])
+    assert got.narrowed.tolist() == [[False, True]]
+    assert got.simulations == 8 + 4 + 3  # places, hairs of both bounds, the step in
 
 
 def test_no_side_is_checked_where_there_is_no_room():

@@ -60,6 +60,9 @@ PARTS_MEET_NOTE = ("a tolerance marked 'parts meet' stops where moving that para
                    "would make two parts overlap: the layout cannot be built past it.")
 
 
+PUSH_NOTE = ("'push against the X': slide the part along that parameter until it touches X; "
+             "the layout was simulated there and works, so no number is needed.")
+
 NARROWED = " (narrowed by simulation)"
 
 
@@ -105,8 +108,12 @@ def tolerance_paragraphs(s: dict) -> list[str]:
 def tolerance_notes(s: dict) -> list[str]:
     """The notes under a run's tolerances: what the marks of :func:`range_end_marks` mean,
     and a caution when the model itself is too rough to give them."""
+    push = s.get("push_against") or {}
+    unpushed = any(side not in push.get(name, {}) for name, where in
+                   (s.get("overlap_ends") or {}).items()
+                   for side in (("low", "high") if where == "both" else (where,)))
     notes = ([RANGE_END_NOTE] if s.get("range_ends") else []) + (
-        [PARTS_MEET_NOTE] if s.get("overlap_ends") else []) + (
+        [PARTS_MEET_NOTE] if unpushed else []) + ([PUSH_NOTE] if push else []) + (
         [narrowed_note(s)] if (s.get("tolerance_check") or {}).get("narrowed") else [])
     if s.get("verified") and s["probability"] < ROUGH_MODEL:
         notes.append(
