@@ -193,7 +193,8 @@ def test_optimize_states_the_hand_figure_in_its_summary_report_and_template(tmp_
     hand = summary["hand"]
     assert hand["hand"]["samples"] >= 16 and hand["seed"] == 0
     assert summary["simulations_by_stage"]["hand"] == hand["simulations"]
-    assert "built by hand: works" in out and f"{hand['simulations']} builds by hand" in out
+    builds = hand["simulations"] + summary["simulations_by_stage"].get("choice by hand", 0)
+    assert "built by hand: works" in out and f"{builds} builds by hand" in out
     assert "## Built by hand" in (run / "report.md").read_text()
     assert (run / "hand.png").stat().st_size > 0
     assert "built by hand: <b>works" in (run / "report.html").read_text()

@@ -337,7 +337,7 @@ class HandSettings:
 
 
 HAND_SETTINGS = {"tiny": HandSettings(0.2, 8, 8, 16, 4, 2, 4),
-                 "small": HandSettings(0.1, 16, 16, 64, 8, 4, 8),
+                 "small": HandSettings(0.15, 16, 16, 32, 4, 2, 4),
                  "default": HandSettings()}
 """By ``optimize``'s budget (others: ``"default"``'s); ``evaluate`` uses ``"default"``."""
 

@@ -1,4 +1,4 @@
-"""What a finished optimisation run shows: ``report.md`` and its three plots.
+"""What a finished optimisation run shows: ``report.md`` and its plots.
 
 The report is markdown written from the run's summary (``result.json``); the plots are
 matplotlib figures (Agg), in the units the user works in (mm, degrees): the learnt success
@@ -432,18 +432,14 @@ def _close_in_words(close_in: dict | None) -> str:
                     f"{close_in['kept']} was handed out instead.")
 
 
-def _estimate_simulations(summary: dict) -> int:
-    """Simulations of the run summary's rho_g estimate, both kinds of error (0 when none)."""
-    r = summary.get("robustness") or {}
-    return r.get("simulations", 0) + (r.get("physics") or {}).get("simulations", 0)
-
-
 def count_line(summary: dict) -> str:
     """What the run simulated, in how long; a run learnt at the corners (``worlds``)
     simulated each layout once per world."""
-    estimate = _estimate_simulations(summary)
-    extra = f" and {estimate} for the rho_g estimate" if estimate else ""
-    extra += f" and {hand['simulations']} builds by hand" if (hand := summary.get("hand")) else ""
+    r = summary.get("robustness") or {}  # the rho_g estimate's, both kinds of error
+    estimate = r.get("simulations", 0) + (r.get("physics") or {}).get("simulations", 0)
+    builds = sum(summary["simulations_by_stage"].get(k, 0) for k in ("choice by hand", "hand"))
+    extra = (f" and {estimate} for the rho_g estimate" if estimate else "") + (
+        f" and {builds} builds by hand" if builds else "")
     n, worlds = summary["simulations"], summary.get("worlds", 1)
     counted, both = f"{n} simulations", ""
     if worlds > 1:
