@@ -361,10 +361,12 @@ def _cover_pages(pdf, drawing, parts, info: SheetInfo, sheets, grid, title, fram
 def write_pdf(path: Path, title: str, drawing: Drawing, parts, frame: PlaneFrame,
               map_sheet: SheetInfo, sheets: tuple[SheetInfo, ...], grid: tuple[int, int],
               paper: str, orientation: str, overlap_mm: float,
-              empty: set[str] = frozenset(), note: str = "") -> int:
+              empty: set[str] = frozenset(), note: str = "", seams=None, clear=None) -> int:
     """Write the template's PDF; returns its number of pages. ``empty``: labels of the
     sheets with nothing to place (:func:`empty_sheets`), which say so; ``note``: a line
-    beside the assembly map (how often the layout works when built by hand).
+    beside the assembly map (how often the layout works when built by hand); ``seams``: the
+    sheets' (:func:`seams_of`, computed here when None); ``clear``: the parts (a shapely
+    geometry, drawing mm), which tick labels keep off.
 
     ``parts`` are the drawing's :class:`rgmcad.printing.drawing.PartOutline` in placement
     order; ``sheets`` the tiled sheets, numbered after :func:`cover_page_count` pages.
@@ -372,9 +374,9 @@ def write_pdf(path: Path, title: str, drawing: Drawing, parts, frame: PlaneFrame
     pdf = _Pdf(path, title)
     _cover_pages(pdf, drawing, parts, map_sheet, sheets, grid, title, frame, paper,
                  orientation, overlap_mm, empty, note)
-    seams = seams_of(sheets)
+    seams = seams_of(sheets) if seams is None else seams
     for info in sheets:
         tile_page(pdf, drawing, info, seams, grid, title, paper, frame,
-                  empty=info.label in empty)
+                  empty=info.label in empty, clear=clear)
     pdf.save()
     return pdf.pages

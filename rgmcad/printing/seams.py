@@ -84,8 +84,36 @@ def _marks_along(lo: float, hi: float, first: int) -> tuple[tuple[float, str], .
     return tuple((lo + MARK_INSET_MM + i * step, pair_label(first + i)) for i in range(n))
 
 
-def seams_of(sheets) -> tuple[Seam, ...]:
-    """Every seam of a tiled template: vertical ones row by row, then horizontal ones.
+def _clear_of(seam: Seam, clear) -> Seam:
+    """``seam`` with each matching mark slid along the line (2 mm at a time, at most three
+    quarters of the spacing, never within 12 mm of another mark) to the nearest place where
+    the mark and its letters on both sides stay off ``clear`` (the parts, drawing mm); a mark
+    with no such place stays."""
+    from shapely.geometry import box
+
+    lo, hi = seam.span
+    reach = 2 * MARK_HALF_MM + 4.0  # the tick's half-length, the gap, two letters
+
+    def footprint(t):
+        (a, b), (c, d) = seam.points(t - 4.0, -reach), seam.points(t + 4.0, reach)
+        return box(min(a, c), min(b, d), max(a, c), max(b, d))
+
+    marks = list(seam.marks)
+    for i, (t, pair) in enumerate(seam.marks):
+        others = [m for j, (m, _) in enumerate(marks) if j != i]
+        tries = [t + s * k * 2.0 for k in range(int(0.75 * MARK_SPACING_MM / 2) + 1)
+                 for s in (1, -1)]
+        free = next((u for u in tries if lo + 4.0 <= u <= hi - 4.0
+                     and all(abs(u - m) >= 12.0 for m in others)
+                     and not footprint(u).intersects(clear)), t)
+        marks[i] = (free, pair)
+    return Seam(seam.under, seam.over, seam.axis, seam.at, seam.span, tuple(marks))
+
+
+def seams_of(sheets, clear=None) -> tuple[Seam, ...]:
+    """Every seam of a tiled template: vertical ones row by row, then horizontal ones;
+    with ``clear`` (a shapely geometry, drawing mm: the parts), their matching marks slid
+    off it where they can be.
 
     ``sheets`` are :class:`rgmcad.printing.sheets.SheetInfo` with ``keep_mm`` set.
     """
@@ -105,7 +133,7 @@ def seams_of(sheets) -> tuple[Seam, ...]:
             marks = _marks_along(lo, hi, count)
             count += len(marks)
             out.append(Seam(s.label, below.label, "v", s.keep_mm[1], (lo, hi), marks))
-    return tuple(out)
+    return tuple(out) if clear is None else tuple(_clear_of(seam, clear) for seam in out)
 
 
 def label_keepouts(sheets, seams, tick_strip_mm: float = 6.0):

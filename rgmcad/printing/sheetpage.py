@@ -102,12 +102,22 @@ def bottom_band(pdf, text: str, frame: PlaneFrame | None):
         orientation_arrows(pdf, x_arrows, y_bar + 7.5, frame)
 
 
-def _world_ticks(pdf, info: SheetInfo, frame: PlaneFrame):
+def _world_ticks(pdf, info: SheetInfo, frame: PlaneFrame, clear=None):
     """World coordinates along the top and left edges of the area the sheet keeps.
 
     A tick every 10 mm, a label (e.g. ``x -150``) every 50 mm, for drawing axes that run
-    along a world axis; they place the assembled sheets on the floor or board.
+    along a world axis; they place the assembled sheets on the floor or board. A label that
+    would lie on ``clear`` (the parts, drawing mm) is left out; its tick stays.
     """
+    from shapely.geometry import box
+
+    def label(x, y, text):  # left end of the baseline, sheet mm
+        (a, b), (c, d) = info.to_drawing(x, y + 0.4), info.to_drawing(
+            x + text_width(text, 1.8, False), y - 1.8)
+        if clear is None or not box(min(a, c), min(b, d), max(a, c), max(b, d)).intersects(
+                clear):
+            pdf.text(x, y, text, 1.8, colour=grey)
+
     k0, k1 = info.keep_mm[0], info.keep_mm[3]  # left and top edges kept, drawing mm
     x_left, y_top = info.to_page(k0, k1)
     u0, v0, u1, v1 = info.keep_mm
@@ -127,12 +137,12 @@ def _world_ticks(pdf, info: SheetInfo, frame: PlaneFrame):
                 x = info.to_page(d, v1)[0]
                 pdf.polyline([[x, y_top], [x, y_top + tick]], 0.15, grey)
                 if major:
-                    pdf.text(x + 0.6, y_top + 3.2, f"{name} {w}", 1.8, colour=grey)
+                    label(x + 0.6, y_top + 3.2, f"{name} {w}")
             else:
                 y = info.to_page(u0, d)[1]
                 pdf.polyline([[x_left, y], [x_left + tick, y]], 0.15, grey)
                 if major:
-                    pdf.text(x_left + 3.6, y + 0.6, f"{name} {w}", 1.8, colour=grey)
+                    label(x_left + 3.6, y + 0.6, f"{name} {w}")
 
 
 def _hatch(pdf, x0, y0, x1, y1, step=2.5):
@@ -199,9 +209,9 @@ EMPTY_NOTE = "Nothing to place on this sheet: it only holds its neighbours in li
 
 
 def tile_page(pdf, drawing, info: SheetInfo, seams, grid, title, paper, frame: PlaneFrame,
-              empty: bool = False):
+              empty: bool = False, clear=None):
     """Draw one tiled sheet on a new page of ``pdf``; ``empty``: no part or rope shows on it,
-    and the sheet says so."""
+    and the sheet says so; ``clear``: the parts (drawing mm), which tick labels keep off."""
     cols, rows = grid
     w, h = info.size_mm
     pdf.new_page(w, h)
@@ -224,7 +234,7 @@ def tile_page(pdf, drawing, info: SheetInfo, seams, grid, title, paper, frame: P
     for seam in mine:
         _seam(pdf, info, seam)
     c.restoreState()
-    _world_ticks(pdf, info, frame)
+    _world_ticks(pdf, info, frame, clear)
     for tid in info.tag_ids:
         pdf.tag(tid, info.tag_corners_mm[tid])
     cut = [s.under for s in mine if s.over == info.label]

@@ -254,6 +254,12 @@ class SheetInfo:
         u0, _, _, v1 = self.region_mm
         return np.array([[1.0, 0.0, u0 - x0], [0.0, -1.0, v1 + y0], [0.0, 0.0, 1.0]])
 
+    def to_drawing(self, x: float, y: float) -> tuple[float, float]:
+        """Drawing ``(u, v)`` mm of sheet point ``(x, y)`` mm (y down)."""
+        x0, y0, _, _ = self.window_mm
+        u0, _, _, v1 = self.region_mm
+        return u0 + (x - x0), v1 - (y - y0)
+
     def to_page(self, u: float, v: float) -> tuple[float, float]:
         """Sheet mm (y down) of drawing point ``(u, v)`` mm."""
         x0, y0, _, _ = self.window_mm

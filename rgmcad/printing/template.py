@@ -20,6 +20,8 @@ import logging
 from dataclasses import dataclass, replace
 from pathlib import Path
 
+from shapely.ops import unary_union
+
 from rgmcad.errors import RgmcadError, ScenarioError
 from rgmcad.printing.drawing import PartOutline, build_drawing
 from rgmcad.printing.inputs import template_inputs
@@ -160,8 +162,11 @@ def make_template(parts, base_planes, out_dir, *, plane: str | None = None,
     # seams and inside what the sheets keep
     tiled = drawing.extent
     sheets = tile_sheets(tiled, paper, orientation, (cols, rows), overlap_mm, 2)  # renumbered below
+    # the parts, which seam marks and tick labels keep off (a millimetre around each)
+    clear = unary_union([o.outline for o in outlines]).buffer(1.0)
+    seams = seams_of(sheets, clear)
     if len(sheets) > 1:
-        avoid, inside = label_keepouts(sheets, seams_of(sheets))
+        avoid, inside = label_keepouts(sheets, seams)
         drawing, outlines = build_drawing(parts, base_planes, frame, avoid=avoid, inside=inside,
                                           geoms=[o.outline for o in outlines], frames=frames,
                                           ropes=ropes)
@@ -171,7 +176,7 @@ def make_template(parts, base_planes, out_dir, *, plane: str | None = None,
     pdf_path, svg_path = out_dir / "template.pdf", out_dir / "template.svg"
     empty = empty_sheets(outlines, sheets, drawing.ropes)
     n_pages = write_pdf(pdf_path, title, drawing, outlines, frame, map_info, sheets,
-                        (cols, rows), paper, orientation, overlap_mm, empty, note)
+                        (cols, rows), paper, orientation, overlap_mm, empty, note, seams, clear)
     write_svg(svg_path, drawing, title, frame)
 
     centres = {"map": dict(map_info.tag_centres_mm)}
