@@ -12,6 +12,7 @@ import pytest
 
 from rgmcad.runs.hand import (
     Hand,
+    hand_race,
     measure_rate,
     parse_hand,
     weak_links,
@@ -72,6 +73,24 @@ def test_weak_links_draw_more_only_for_the_parts_that_failed():
     assert by_name["run"].objects == ("c1", "c2")
     assert {d.moved for d in coin.draws} == {frozenset(g) for g in groups.values()}
     assert all(d.ranges.friction == d.ranges.mass == 0 for d in coin.draws)  # physics as is
+
+
+def test_the_final_choice_by_hand_keeps_the_best_and_stops_when_all_are_as_good():
+    rates = {0: 0.7, 1: 0.9, 2: 0.2}  # candidate i works on draw k where (k * 7919) % 100 <
+    met = {i: [] for i in rates}
+
+    def simulate_at(i, draws):
+        met[i] += [d.index for d in draws]
+        return [_record((d.index * 7919) % 100 < 100 * rates[i]) for d in draws]
+
+    winner, got = hand_race(simulate_at, 3, Hand(), None, 0, first=32, most=320)
+    assert winner == 1 and got[1].samples >= got[0].samples
+    assert got[2].samples == 32  # dropped at the first stage: clearly worse
+    assert all(m == list(range(len(m))) for m in met.values())  # the same builds for all
+    same = {i: [] for i in range(3)}
+    winner, got = hand_race(lambda i, draws: same[i].extend(draws) or [_record(True)] * len(
+        draws), 3, Hand(), None, 0, first=32, most=320)
+    assert winner == 0 and [r.samples for r in got] == [32, 32, 32]  # equal: no more builds
 
 
 def test_a_part_misplaced_alone_is_where_the_full_draw_put_it():

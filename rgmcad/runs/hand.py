@@ -202,13 +202,16 @@ _DROP_Z = 2.5  # a finalist this many paired standard errors below the leader is
 
 def hand_race(simulate_at: Callable[[int, Sequence[PhysicsDraw]], list[SimRecord]],
               n_candidates: int, hand: Hand, physics: PhysicsRanges | None, seed: int, *,
-              first: int = 32, most: int = 320) -> tuple[int, list[HandRate]]:
+              first: int = 32, most: int = 320, precision: float = 0.05
+              ) -> tuple[int, list[HandRate]]:
     """The candidate (index) that works most often under ``hand`` and ``physics``: all meet
     the same draws (``simulate_at(i, draws)``: candidate ``i``'s records), ``first`` of them,
     then twice as many, up to ``most``; after each stage a candidate whose paired deficit to
-    the leader is over ``_DROP_Z`` standard errors is dropped. Of those left, the highest rate
-    wins; a tie goes to the earlier candidate. Returns (winner, each candidate's rate over the
-    draws it met)."""
+    the leader is over ``_DROP_Z`` standard errors is dropped, and the race stops when every
+    candidate left is within ``precision`` of the leader (its paired difference plus two
+    standard errors: all equally good to a maker). Of those left, the highest rate wins; a
+    tie goes to the earlier candidate. Returns (winner, each candidate's rate over the draws
+    it met)."""
     ranges = hand.ranges(physics)
     wins: list[list[bool]] = [[] for _ in range(n_candidates)]
     records: list[list[SimRecord]] = [[] for _ in range(n_candidates)]
@@ -221,14 +224,15 @@ def hand_race(simulate_at: Callable[[int, Sequence[PhysicsDraw]], list[SimRecord
             records[i] += new
             wins[i] += [r.outcome is Outcome.SUCCESS for r in new]
         leader = max(alive, key=lambda i: (np.mean(wins[i]), -i))
-        kept = []
+        kept, close = [], True
         for i in alive:
             diff = np.asarray(wins[leader], float) - np.asarray(wins[i], float)
             se = diff.std(ddof=1) / np.sqrt(len(diff)) if len(diff) > 1 else 0.0
             if i == leader or diff.mean() <= 0.0 or (se > 0.0 and diff.mean() <= _DROP_Z * se):
                 kept.append(i)
+                close &= abs(diff.mean()) + 2.0 * se <= precision
         alive = kept
-        if len(alive) == 1 or target >= most:
+        if len(alive) == 1 or target >= most or close:
             break
         target = min(2 * target, most)
     winner = max(alive, key=lambda i: (np.mean(wins[i]), -i))
@@ -244,7 +248,7 @@ def chosen_by_hand(chosen: dict, builds: Builds, hand: Hand, physics: PhysicsRan
     before = builds.simulations
     winner, rates = hand_race(lambda i, draws: builds(finalists[i]["x"], draws),
                               len(finalists), hand, physics, seed, first=settings.batch,
-                              most=settings.maximum)
+                              most=settings.maximum, precision=settings.precision)
     out = {**chosen, "hand_choice": {
         "candidates": [{"source": f["source"], "rate": r.rate, "interval": [r.low, r.high],
                         "samples": r.samples} for f, r in zip(finalists, rates, strict=True)],

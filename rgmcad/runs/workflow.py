@@ -46,7 +46,7 @@ from rgmcad.runs.outputs import LAYOUT_FILE, START_FILE, at_layout, write_output
 from rgmcad.runs.problem import ScenarioProblem, SimRecord, scenario_digest
 from rgmcad.runs.starts import check_starts_valid, choose_layout, resolve_starts, starts_tag
 from rgmcad.runs.store import SIMULATIONS, RecordedProblem, RunStore, run_identity
-from rgmcad.runs.tolerance_check import check_tolerances, printed_step, success_of
+from rgmcad.runs.tolerance_check import POINTS, check_tolerances, printed_step, success_of
 from rgmcad.scene.perturbation import DEFAULT_PHYSICS, PhysicsRanges, corner_worlds
 
 __all__ = ["LAYOUT_FILE", "START_FILE", "RunProgress", "OptimizationRun", "default_run_dir",
@@ -262,7 +262,9 @@ def optimize_scenario(
                                    np.asarray(chosen["x"], dtype=float), learner_problem.validity)
             checked = None
             if tolerance_check and chosen["verified"]:  # a failing layout's mean nothing
-                progress.stage("tolerance check")
+                # about: each side's places, its range's end, two hairs (halvings not counted)
+                progress.stage("tolerance check",
+                               int(np.count_nonzero(model_view[-1] > 0)) * (POINTS + 3))
                 checked = check_tolerances(np.asarray(chosen["x"], dtype=float), model_view[-1],
                                            success_of(learner_problem), printed_step(scenario))
             by_hand = None
