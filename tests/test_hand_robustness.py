@@ -12,6 +12,7 @@ import pytest
 
 from rgmcad.runs.hand import (
     Hand,
+    careful_hands,
     hand_race,
     measure_rate,
     parse_hand,
@@ -91,6 +92,21 @@ def test_the_final_choice_by_hand_keeps_the_best_and_stops_when_all_are_as_good(
     winner, got = hand_race(lambda i, draws: same[i].extend(draws) or [_record(True)] * len(
         draws), 3, Hand(), None, 0, first=32, most=320)
     assert winner == 0 and [r.samples for r in got] == [32, 32, 32]  # equal: no more builds
+
+
+def test_a_weak_link_gets_the_hand_it_needs_by_simulation():
+    # the track works misplaced alone within 1 mm, not 1.5; the ball never fails
+    def simulate(draws):
+        return [_record("track" not in d.moved or (d.ranges.position <= 0.001 + 1e-12
+                                                   or d.index % 2 == 0)) for d in draws]
+
+    links = weak_links(simulate, {"track": ["track"], "ball": ["ball"]}, Hand(), 0)
+    links = careful_hands(simulate, links, Hand(), 0, samples=16)
+    track = links[0].to_json()
+    assert track["name"] == "track" and track["successes"] < track["samples"]
+    assert (track["careful"]["position_mm"], track["careful"]["heading_deg"]) == (1.0, 1.0)
+    assert track["careful"]["successes"] == track["careful"]["samples"] == 16
+    assert links[1].careful is None  # never failed: needs no care
 
 
 def test_a_part_misplaced_alone_is_where_the_full_draw_put_it():

@@ -270,9 +270,11 @@ class WeakLink:
     name: str
     objects: tuple[str, ...]
     rate: HandRate
+    careful: HandRate | None = None  # the largest smaller hand it worked at every build
 
     def to_json(self) -> dict:
-        return {"name": self.name, "objects": list(self.objects), **self.rate.to_json()}
+        return {"name": self.name, "objects": list(self.objects), **self.rate.to_json(),
+                "careful": None if self.careful is None else self.careful.to_json()}
 
 
 def weak_links(simulate: Simulate, groups: dict[str, list[str]], hand: Hand, seed: int, *,
@@ -299,6 +301,31 @@ def weak_links(simulate: Simulate, groups: dict[str, list[str]], hand: Hand, see
         wanted = [n for n in wanted if any(r.outcome is not Outcome.SUCCESS for r in records[n])]
     links = [WeakLink(n, tuple(groups[n]), _rate(hand, None, records[n])) for n in names]
     return sorted(links, key=lambda w: (w.rate.rate, -w.rate.samples))
+
+
+CAREFUL = (0.75, 0.5, 0.25)
+"""Fractions of the hand tried, largest first, for a weak link's own tolerance."""
+
+
+def careful_hands(simulate: Simulate, links: list[WeakLink], hand: Hand, seed: int, *,
+                  top: int = 3, samples: int = 16) -> list[WeakLink]:
+    """The ``top`` weak links that failed, each with the largest hand of ``CAREFUL`` (the
+    heading scaled alike) at which misplacing it alone worked in all ``samples`` builds: the
+    care that part needs, a tolerance by simulation for a part that may be fixed. Others
+    unchanged; a link that failed at every size gets none."""
+    out = list(links)
+    for k, link in enumerate(links[:top]):
+        if link.rate.successes == link.rate.samples:
+            break
+        for fraction in CAREFUL:
+            small = Hand(hand.position_mm * fraction, hand.heading_deg * fraction)
+            draws = [PhysicsDraw(small.ranges(None), seed, i, frozenset(link.objects))
+                     for i in range(samples)]
+            rate = _rate(small, None, simulate(draws))
+            if rate.successes == rate.samples:
+                out[k] = dataclasses.replace(link, careful=rate)
+                break
+    return out
 
 
 class Builds:
@@ -329,7 +356,8 @@ class HandSettings:
     """How many builds each figure of :func:`hand_figures` simulates: the headline rate in
     batches of ``batch`` (at least ``minimum``, at most ``maximum``) until its 95 % interval's
     half-width is at most ``precision``; ``curve_samples`` per size on the curve; each part
-    alone ``weak_first`` times, up to ``weak_most`` where it failed."""
+    alone ``weak_first`` times, up to ``weak_most`` where it failed; ``careful_samples`` per
+    smaller hand for the weakest links (:func:`careful_hands`)."""
 
     precision: float = 0.05
     batch: int = 32
@@ -338,10 +366,11 @@ class HandSettings:
     curve_samples: int = 24
     weak_first: int = 8
     weak_most: int = 32
+    careful_samples: int = 16
 
 
-HAND_SETTINGS = {"tiny": HandSettings(0.2, 8, 8, 16, 4, 2, 4),
-                 "small": HandSettings(0.15, 16, 16, 32, 4, 2, 4),
+HAND_SETTINGS = {"tiny": HandSettings(0.2, 8, 8, 16, 4, 2, 4, 4),
+                 "small": HandSettings(0.15, 16, 16, 32, 4, 2, 4, 8),
                  "default": HandSettings()}
 """By ``optimize``'s budget (others: ``"default"``'s); ``evaluate`` uses ``"default"``."""
 
@@ -380,8 +409,9 @@ def hand_figures(executor, problem: ScenarioProblem, x, hand: Hand,
     curve = hand_curve(simulate, hand, physics, seed, known=rate, samples=s.curve_samples)
     groups = placement_groups(problem.scenario,
                               [n for n, p in problem.parts.items() if p.infinite])
-    weak_at = stage("weak links", len(groups) * s.weak_most)
+    weak_at = stage("weak links", len(groups) * s.weak_most + 3 * len(CAREFUL) * s.careful_samples)
     links = weak_links(simulate, groups, hand, seed, first=s.weak_first, most=s.weak_most)
+    links = careful_hands(simulate, links, hand, seed, samples=s.careful_samples)
     end = time.perf_counter()
     return {"hand": rate.to_json(), "hand_curve": [c.to_json() for c in curve],
             "weak_links": [w.to_json() for w in links],

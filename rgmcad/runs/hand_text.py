@@ -49,8 +49,12 @@ def weak_link_lines(figures: dict, most: int = 5) -> list[str]:
            f"+-{h['heading_deg']:g} deg, the rest exact, physics unperturbed):"]
     for w in weak[:most]:
         many = f" ({len(w['objects'])} parts)" if len(w["objects"]) > 1 else ""
+        care = w.get("careful")
         out.append(f"  {w['name']}{many}: fails {w['samples'] - w['successes']} of "
-                   f"{w['samples']}")
+                   f"{w['samples']}" + ("" if not care else
+                                        f"; within +-{care['position_mm']:.1f} mm and "
+                                        f"+-{care['heading_deg']:.1f} deg it worked "
+                                        f"{care['successes']} of {care['samples']}"))
     if len(weak) > most:
         out.append(f"  and {len(weak) - most} more")
     return out
