@@ -167,9 +167,12 @@ def test_evaluate_states_how_often_a_built_layout_works(tmp_path):
     assert (tmp_path / "h.png").stat().st_size > 0
     names = {w["name"] for w in result["weak_links"]}
     assert names == {"ball", "track", "run"}  # the floor is an infinite plane: not placed
-    code, out, _ = cli_output(["evaluate", SIMPLE, "--layout", "solved", "--workers", "1",
-                               "--out", str(tmp_path / "h2.png"), "--hand", "4mm,1deg"])
+    code, out, err = cli_output(["evaluate", SIMPLE, "--layout", "solved", "--workers", "1",
+                                 "--out", str(tmp_path / "h2.png"), "--hand", "4mm,1deg"])
     assert code == 0
+    # progress: each stage counted against its total (at most so many builds), time left
+    assert re.search(r"builds within \+-4 mm and \+-1 deg: +\d+%\|.*\| \d+/320 \[", err)
+    assert re.search(r"success against hand error: +\d+%\|.*\| \d+/144 \[", err)
     assert re.search(r"works \d+ % \[\d+, \d+\] of the time when each part is placed within "
                      r"\+-4 mm and \+-1 degrees", out)
     assert "+-10.0 mm, +- 2.5 deg" in out.replace("+-2.5", "+- 2.5")  # the hand's ratio kept
