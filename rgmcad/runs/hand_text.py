@@ -4,6 +4,7 @@ template's cover, the curve as a table and a plot, the weak links, the report's 
 from __future__ import annotations
 
 from rgmcad.runs.hand import rate_text
+from rgmcad.runs.robustness import save_plot
 from rgmcad.scene.perturbation import PhysicsRanges
 
 __all__ = ["hand_headline", "hand_note", "hand_table", "weak_link_lines", "hand_markdown",
@@ -102,11 +103,5 @@ def plot_hand(figures: dict, path, title: str = "") -> None:
     ax.set_ylabel("works, % of builds")
     ax.set_ylim(0, 102)
     ax.set_xlim(0, max(mm))
-    ax.grid(alpha=0.3)
-    ax.legend(loc="lower left", fontsize=8)
-    if title:
-        ax.set_title(title, fontsize=10)
-    fig.tight_layout()
-    fig.savefig(path)
-    plt.close(fig)
+    save_plot(fig, ax, path, title, "lower left")
 

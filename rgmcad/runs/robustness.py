@@ -404,8 +404,15 @@ def plot_curves(curves: dict[str, RobustnessCurve], path, title: str = "") -> No
     ax.set_ylabel("local robustness rho_l")
     ax.set_xlim(0, float(max(c.eps.max() for c in curves.values())))
     ax.set_ylim(0, 1.02)
+    save_plot(fig, ax, path, title, "upper right")
+
+
+def save_plot(fig, ax, path, title: str = "", legend: str = "best") -> None:
+    """Grid, legend at ``legend``, ``title``: the plot written to ``path`` and closed."""
+    import matplotlib.pyplot as plt
+
     ax.grid(alpha=0.3)
-    ax.legend(loc="upper right", fontsize=8)
+    ax.legend(loc=legend, fontsize=8)
     if title:
         ax.set_title(title, fontsize=10)
     fig.tight_layout()
