@@ -53,7 +53,8 @@ def test_no_side_is_checked_where_there_is_no_room():
     assert got.simulations == 0 and not got.narrowed.any()
 
 
-_LINE = re.compile(r"^\s+(\S+)\s+(-?[\d.]+) (mm|deg)\s+-([\d.]+)[^/]*/ \+([\d.]+)")
+_LINE = re.compile(r"^\s+(\S+)\s+(-?[\d.]+) (mm|deg)\s+(-[\d.]+|push against)[^/]*/ "
+                   r"(\+[\d.]+|push against)")
 
 
 def test_every_printed_tolerance_holds_at_its_bound_in_simulation(tmp_path):
@@ -67,7 +68,9 @@ def test_every_printed_tolerance_holds_at_its_bound_in_simulation(tmp_path):
     layout = str(run / "layout.json")
     for name, _, unit, down, up in rows:
         k = 1000.0 if unit == "mm" else 1.0
-        for moved in (-float(down), float(up)):
+        pushed = [t * k for t in summary["tolerances"][name]]  # to where the parts just clear
+        for moved in (-pushed[0] if down == "push against" else float(down),
+                      pushed[1] if up == "push against" else float(up)):
             if moved == 0:
                 continue
             to = summary["values"][name] + moved / k  # the layout's value, moved as printed
@@ -123,3 +126,31 @@ def test_the_template_says_push_where_the_layout_file_does(tmp_path):
     notes = next(p["notes"] for p in json.loads(out)["parts"] if p["name"] == "track")
     assert "z +12.3 mm; below: push against the floor" in notes
     assert "x ± 2 mm" in notes  # a part the scenario lacks: a plain tolerance
+
+
+def test_each_side_is_confirmed_as_a_maker_sets_it_with_real_values():
+    from rgmcad.runs.tolerance_check import CheckedTolerances, confirm_as_printed
+    from rgmcad.scene.loader import load_scenario
+
+    scenario = load_scenario("scenarios/simple.toml")  # track.x in [-0.15, 0], x, z, roll
+    x = np.array([0.5, 0.5, 0.5])
+    values = np.array([-0.075, 0.075, 45.0])
+    asked = []
+
+    def simulate_values(V):  # track.x works down to 29.95 mm below, roll to 5.97 deg above
+        asked.append(V.copy())
+        return (V[:, 0] >= values[0] - 0.02995) & (V[:, 2] <= values[2] + 5.97)
+
+    checked = CheckedTolerances(np.array([[0.2, 0.1], [0.0, 0.3], [0.1, 0.1]]),
+                                np.zeros((3, 2), bool), 10)
+    got = confirm_as_printed(checked, x, scenario, simulate_values)
+    width = np.array([0.15, 0.15, 60.0])
+    real = got.tolerances * width[:, None]
+    assert real[0, 0] == pytest.approx(0.0299) and real[2, 1] == pytest.approx(5.9)
+    assert real[0, 1] == pytest.approx(0.015) and real[2, 0] == pytest.approx(6.0)
+    assert real[1, 0] == 0.0 and real[1, 1] == pytest.approx(0.045)
+    assert got.narrowed.tolist() == [[True, False], [False, False], [False, True]]
+    # the layouts simulated are the real values moved by the printed numbers, nothing else
+    first = asked[0]
+    assert len(first) == 5 and all(np.count_nonzero(row != values) == 1 for row in first)
+    assert got.simulations == 10 + 5 + 2

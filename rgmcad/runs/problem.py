@@ -29,7 +29,7 @@ from rgmcad.parts.store import DEFAULT_BUILD_DIR
 from rgmcad.sim.run import Outcome
 
 __all__ = ["SimRecord", "ScenarioContext", "ScenarioProblem", "ContextPayload", "simulate_task",
-           "simulate_layout_task", "worst_of", "validity_task",
+           "simulate_layout_task", "simulate_values_task", "worst_of", "validity_task",
            "scenario_digest", "event_parents", "any_joins"]
 
 
@@ -193,6 +193,21 @@ class ScenarioContext:
         return SimRecord(r.outcome is not Outcome.INVALID, r.outcome, events,
                          float(r.wall_time))
 
+    def simulate_values(self, values: np.ndarray) -> SimRecord:
+        """Simulate the layout of real parameter ``values`` (d,) exactly as given (as
+        ``rgmcad simulate --value`` does), the validity test included."""
+        from rgmcad.sim.run import simulate
+
+        if self._engine is None:
+            from rgmcad.sim.engine import Engine
+
+            self._engine = Engine(renderer=False)
+        r = simulate(self.scenario, np.asarray(values, float), self.parts, engine=self._engine,
+                     cache=self.cache)
+        labels = r.labels()
+        return SimRecord(r.outcome is not Outcome.INVALID, r.outcome,
+                         {e.name: (labels[e.name], e.time) for e in r.events}, float(r.wall_time))
+
     def close(self) -> None:
         """Disconnect the engine and drop the derived data."""
         if self._engine is not None:
@@ -273,6 +288,11 @@ def simulate_layout_task(context: ScenarioContext, item: tuple) -> SimRecord:
     if physics and physics[0] is not None:
         return context.simulate_one(x, known_valid=known_valid, physics=physics[0])
     return context.simulate_one(x, known_valid=True) if known_valid else context.simulate_one(x)
+
+
+def simulate_values_task(context: ScenarioContext, values: np.ndarray) -> SimRecord:
+    """``context.simulate_values(values)``: a layout given by its real parameter values."""
+    return context.simulate_values(values)
 
 
 def worst_of(records: Sequence[SimRecord]) -> SimRecord:

@@ -22,8 +22,9 @@ from dataclasses import dataclass
 import numpy as np
 
 __all__ = ["POINTS", "BISECTIONS", "JITTER", "CONFIRM_STEPS", "CheckedTolerances",
-           "check_tolerances", "printed_step", "sides_of", "flags_of", "success_of",
-           "pushed_against", "narrowed_note", "tolerance_header"]
+           "check_tolerances", "confirm_as_printed", "values_success_on", "printed_step",
+           "sides_of", "flags_of", "success_of", "pushed_against", "narrowed_note",
+           "tolerance_header"]
 
 POINTS = 4
 """Places simulated along each side, the bound the last: a quarter, half, three quarters."""
@@ -153,6 +154,48 @@ def check_tolerances(x: np.ndarray, tolerances: np.ndarray,
     return CheckedTolerances(out, narrowed, simulations)
 
 
+def confirm_as_printed(checked: CheckedTolerances, x: np.ndarray, scenario,
+                       simulate_values: Callable[[np.ndarray], np.ndarray],
+                       steps: int = CONFIRM_STEPS) -> CheckedTolerances:
+    """Each side of ``checked`` simulated once more as a maker moves it: the layout's real
+    values with one parameter moved by the number printed (rounded down to 0.1 mm or 0.1
+    degree, :func:`~rgmcad.runs.report.tolerance_text`), set as a real value: a run's
+    simulations go through the normalised vector, and on a narrowed side a layout 1e-17 m
+    away can fail. A side that fails steps in by one printed step, at most ``steps`` times,
+    then to 0; every side printed is then a real layout that succeeded.
+    ``simulate_values(V)``: (n, d) real values -> (n,) bool success."""
+    from rgmcad.runs.report import tolerance_text
+    from rgmcad.scene.design_space import bounds
+
+    low, high = bounds(scenario)
+    width = high - low
+    values = low + np.asarray(x, float) * width  # as the run's summary states them
+    unit = np.array([1.0 if f.unit == "deg" else 1000.0 for f in scenario.free])
+    out, narrowed = checked.tolerances.copy(), np.zeros_like(checked.narrowed)
+    printed = {(j, k): float(tolerance_text(out[j, k] * width[j] * unit[j])) / unit[j]
+               for j in range(len(values)) for k in range(2) if out[j, k] > 0}
+    simulations = checked.simulations
+    for _ in range(steps + 1):
+        sides = [s for s, p in printed.items() if p > 0]
+        if not sides:
+            break
+        V = np.repeat(values[None], len(sides), axis=0)
+        for row, (j, k) in enumerate(sides):
+            V[row, j] += printed[j, k] if k else -printed[j, k]
+        ok = np.asarray(simulate_values(V), dtype=bool)
+        simulations += len(sides)
+        for (j, k), o in zip(sides, ok, strict=True):
+            if o:  # a side that held as first printed keeps its figure (a range's end)
+                p = printed.pop((j, k))
+                out[j, k] = p / width[j] if narrowed[j, k] else out[j, k]
+            else:
+                narrowed[j, k] = True
+                printed[j, k] = max(round(printed[j, k] * unit[j] * 10) - 1, 0) / 10 / unit[j]
+    for j, k in printed:  # no printed place left that works (or none to print)
+        out[j, k] = 0.0
+    return CheckedTolerances(out, narrowed | checked.narrowed, simulations)
+
+
 def printed_step(scenario) -> np.ndarray:
     """(d,) 0.1 mm or 0.1 degree, the resolution tolerances are printed at, normalised."""
     from rgmcad.scene.design_space import bounds
@@ -205,6 +248,18 @@ def _descendants(scenario, name: str) -> set[str]:
 def flags_of(sides: list[str | None]) -> np.ndarray:
     """(d, 2) bool of per-parameter sides ``"low"``, ``"high"``, ``"both"`` or None."""
     return np.array([[s in ("low", "both"), s in ("high", "both")] for s in sides], bool)
+
+
+def values_success_on(executor):
+    """``(n, d) real values -> (n,) bool``: whether each layout succeeds, simulated on
+    ``executor`` (whose context is the scenario's); not journaled."""
+    from rgmcad.runs.problem import simulate_values_task
+    from rgmcad.sim.run import Outcome
+
+    def succeeds(V):
+        return np.array([r.outcome is Outcome.SUCCESS
+                         for r in executor.map_context(simulate_values_task, list(V))])
+    return succeeds
 
 
 def success_of(recorded):

@@ -46,7 +46,14 @@ from rgmcad.runs.outputs import LAYOUT_FILE, START_FILE, at_layout, write_output
 from rgmcad.runs.problem import ScenarioProblem, SimRecord, scenario_digest
 from rgmcad.runs.starts import check_starts_valid, choose_layout, resolve_starts, starts_tag
 from rgmcad.runs.store import SIMULATIONS, RecordedProblem, RunStore, run_identity
-from rgmcad.runs.tolerance_check import POINTS, check_tolerances, printed_step, success_of
+from rgmcad.runs.tolerance_check import (
+    POINTS,
+    check_tolerances,
+    confirm_as_printed,
+    printed_step,
+    success_of,
+    values_success_on,
+)
 from rgmcad.scene.perturbation import DEFAULT_PHYSICS, PhysicsRanges, corner_worlds
 
 __all__ = ["LAYOUT_FILE", "START_FILE", "RunProgress", "OptimizationRun", "default_run_dir",
@@ -267,6 +274,8 @@ def optimize_scenario(
                                int(np.count_nonzero(model_view[-1] > 0)) * (POINTS + 3))
                 checked = check_tolerances(np.asarray(chosen["x"], dtype=float), model_view[-1],
                                            success_of(learner_problem), printed_step(scenario))
+                checked = confirm_as_printed(checked, np.asarray(chosen["x"], dtype=float),
+                                             scenario, values_success_on(executor))
             by_hand = None
             if hand is not None:
                 by_hand = hand_figures(executor, problem, chosen["x"], hand, physics, seed,
