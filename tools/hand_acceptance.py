@@ -77,9 +77,13 @@ def main() -> int:
     ap.add_argument("--double", default=None, metavar="PARAM")
     ap.add_argument("--out", default="docs/hand-acceptance.json")
     ap.add_argument("--runs", default="runs/hand-acceptance")
+    ap.add_argument("--table", action="store_true", help="print the results file as markdown")
     args = ap.parse_args()
     out = Path(args.out)
     results = json.loads(out.read_text()) if out.is_file() else {}
+    if args.table:
+        print(table(results))
+        return 0
     for given in args.scenarios:
         path = Path(given)
         if args.double:
@@ -116,6 +120,23 @@ def main() -> int:
               + (f"; {ref['layout']} {ref['rate']:.3f} {ref['interval']}" if ref else "")
               + f" ({entry['optimize_seconds']:.0f} s)", flush=True)
     return 0
+
+
+def _pct(r: dict) -> str:
+    low, high = r["interval"]
+    return f"{round(100 * r['rate'])} % [{int(100 * low)}, {-int(-100 * high)}]"
+
+
+def table(results: dict) -> str:
+    rows = ["| scenario | seed | optimised: works when built by hand | reference layout | "
+            "optimize (s) |", "|---|---|---|---|---|"]
+    for entry in results.values():
+        ref = entry.get("reference")
+        rows.append(f"| {Path(entry['scenario']).stem} | {entry['seed']} | "
+                    f"{_pct(entry['optimum'])} | "
+                    + (f"`{ref['layout']}` {_pct(ref)}" if ref else "-")
+                    + f" | {entry['optimize_seconds']:.0f} |")
+    return "\n".join(rows)
 
 
 def problem_layouts(path: str) -> dict:
