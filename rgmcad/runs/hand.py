@@ -278,11 +278,12 @@ class WeakLink:
 
 
 def weak_links(simulate: Simulate, groups: dict[str, list[str]], hand: Hand, seed: int, *,
-               first: int = 8, most: int = 32) -> list[WeakLink]:
+               first: int = 8, most: int = 32, more: int = 5) -> list[WeakLink]:
     """Each group of ``groups`` (:func:`~rgmcad.scene.perturbation.placement_groups`)
     misplaced alone by ``hand``, the physics unperturbed: ``first`` draws each, then the
-    groups that failed at least once drawn on, doubling, up to ``most``. Returned most
-    fragile first (lowest rate, then most draws); groups that never failed last."""
+    ``more`` groups that failed most (at least once) drawn on, doubling, up to ``most``.
+    Returned most fragile first (lowest rate, then most draws); groups that never failed
+    last."""
     names = list(groups)
     records: dict[str, list[SimRecord]] = {name: [] for name in names}
     ranges = hand.ranges(None)
@@ -298,7 +299,8 @@ def weak_links(simulate: Simulate, groups: dict[str, list[str]], hand: Hand, see
         if target >= most:
             break
         target = min(2 * target, most)
-        wanted = [n for n in wanted if any(r.outcome is not Outcome.SUCCESS for r in records[n])]
+        failures = {n: sum(r.outcome is not Outcome.SUCCESS for r in records[n]) for n in wanted}
+        wanted = sorted((n for n in wanted if failures[n]), key=lambda n: -failures[n])[:more]
     links = [WeakLink(n, tuple(groups[n]), _rate(hand, None, records[n])) for n in names]
     return sorted(links, key=lambda w: (w.rate.rate, -w.rate.samples))
 
@@ -409,7 +411,8 @@ def hand_figures(executor, problem: ScenarioProblem, x, hand: Hand,
     curve = hand_curve(simulate, hand, physics, seed, known=rate, samples=s.curve_samples)
     groups = placement_groups(problem.scenario,
                               [n for n, p in problem.parts.items() if p.infinite])
-    weak_at = stage("weak links", len(groups) * s.weak_most + 3 * len(CAREFUL) * s.careful_samples)
+    weak_at = stage("weak links", len(groups) * s.weak_first + 5 * (s.weak_most - s.weak_first)
+                    + 3 * len(CAREFUL) * s.careful_samples)  # at most
     links = weak_links(simulate, groups, hand, seed, first=s.weak_first, most=s.weak_most)
     links = careful_hands(simulate, links, hand, seed, samples=s.careful_samples)
     end = time.perf_counter()
