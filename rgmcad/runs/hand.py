@@ -372,7 +372,7 @@ class HandSettings:
 
 
 HAND_SETTINGS = {"tiny": HandSettings(0.2, 8, 8, 16, 4, 2, 4, 4),
-                 "small": HandSettings(0.15, 16, 16, 32, 4, 2, 4, 8),
+                 "small": HandSettings(0.2, 16, 16, 16, 4, 2, 4, 4),
                  "default": HandSettings()}
 """By ``optimize``'s budget (others: ``"default"``'s); ``evaluate`` uses ``"default"``."""
 
