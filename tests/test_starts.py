@@ -261,7 +261,7 @@ def test_a_start_that_fails_by_a_hair_in_simulation_is_moved_and_the_report_says
     assert not problem.simulate(x[None])[0].success  # as the user wrote it, it fails
 
     run = optimize_scenario(SIMPLE, seed=0, settings=TINY, run_dir=tmp_path / "run", workers=1,
-                            starts=[str(edge)])
+                            starts=[str(edge)], budget="small")
     moved = [c for c in run.summary["verification"]
              if c.get("moved_from") == "start layout 'edge'"]
     assert len(moved) == 1
