@@ -372,9 +372,10 @@ class HandSettings:
 
 
 HAND_SETTINGS = {"tiny": HandSettings(0.2, 8, 8, 16, 4, 2, 4, 4),
-                 "small": HandSettings(0.2, 16, 16, 16, 4, 2, 4, 4),
+                 "small": HandSettings(0.2, 16, 16, 16, 0, 2, 4, 0),
                  "default": HandSettings()}
-"""By ``optimize``'s budget (others: ``"default"``'s); ``evaluate`` uses ``"default"``."""
+"""By ``optimize``'s budget (others: ``"default"``'s); ``evaluate`` uses ``"default"``. No
+curve and no care for the weak links at ``small`` (a quick look; 0 builds: not measured)."""
 
 
 def hand_figures(executor, problem: ScenarioProblem, x, hand: Hand,
@@ -407,14 +408,16 @@ def hand_figures(executor, problem: ScenarioProblem, x, hand: Hand,
     start = stage(f"builds {hand.describe()}", s.maximum)
     rate = measure_rate(simulate, hand, physics, seed, precision=s.precision, batch=s.batch,
                         minimum=s.minimum, maximum=s.maximum)
-    curve_at = stage("success against hand error", s.curve_samples * (len(CURVE_MM) - 1))
-    curve = hand_curve(simulate, hand, physics, seed, known=rate, samples=s.curve_samples)
+    curve_at = stage("success against hand error", max(s.curve_samples * (len(CURVE_MM) - 1), 1))
+    curve = hand_curve(simulate, hand, physics, seed, known=rate, samples=s.curve_samples,
+                       sizes_mm=CURVE_MM if s.curve_samples else ())
     groups = placement_groups(problem.scenario,
                               [n for n, p in problem.parts.items() if p.infinite])
     weak_at = stage("weak links", len(groups) * s.weak_first + 5 * (s.weak_most - s.weak_first)
                     + 3 * len(CAREFUL) * s.careful_samples)  # at most
     links = weak_links(simulate, groups, hand, seed, first=s.weak_first, most=s.weak_most)
-    links = careful_hands(simulate, links, hand, seed, samples=s.careful_samples)
+    if s.careful_samples:
+        links = careful_hands(simulate, links, hand, seed, samples=s.careful_samples)
     end = time.perf_counter()
     return {"hand": rate.to_json(), "hand_curve": [c.to_json() for c in curve],
             "weak_links": [w.to_json() for w in links],
