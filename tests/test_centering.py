@@ -204,7 +204,7 @@ def test_a_run_whose_exploration_fell_short_is_centred(tmp_path):
     short = TINY.replace(n_successes=10_000, exploration_max_iter=2, centering_simulations=32,
                          centering_check_samples=16, exploration_stall_batches=1)
     run = optimize_scenario(SIMPLE, seed=0, settings=short, run_dir=tmp_path / "short",
-                            workers=1, budget="small")  # (its hand settings: a quick look)
+                            workers=1, hand=None)  # the centring is what is tested
     c = run.summary["centering"]
     assert c is not None and c["simulations"] == 32 and len(c["radii"]) == 2
     assert ("centred by simulation" in run.summary["source"]) is c["kept"]
@@ -219,7 +219,7 @@ def test_a_run_whose_exploration_fell_short_is_centred(tmp_path):
     assert f"exploration: {explored['samples']} samples, {explored['successes']} global" in report
     assert f"stalled after iteration {explored['stalled_at']}" in report
     full = optimize_scenario(SIMPLE, seed=0, settings=TINY.replace(centering_simulations=32),
-                             run_dir=tmp_path / "enough", workers=1, budget="small")
+                             run_dir=tmp_path / "enough", workers=1, hand=None)
     # 60 exploration samples, stopped by N+ (measured: not at the cap of 40 + 8 x 10)
     assert full.summary["simulations_by_stage"]["exploration"] < 120
     assert full.summary["centering"] is None
