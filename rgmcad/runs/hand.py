@@ -371,8 +371,7 @@ class HandSettings:
     careful_samples: int = 16
 
 
-HAND_SETTINGS = {"tiny": HandSettings(0.2, 8, 8, 16, 4, 2, 4, 4),
-                 "small": HandSettings(0.2, 16, 16, 16, 0, 2, 4, 0),
+HAND_SETTINGS = {"small": HandSettings(0.2, 16, 16, 16, 0, 2, 4, 0),
                  "default": HandSettings()}
 """By ``optimize``'s budget (others: ``"default"``'s); ``evaluate`` uses ``"default"``. No
 curve and no care for the weak links at ``small`` (a quick look; 0 builds: not measured)."""

@@ -180,33 +180,25 @@ class ScenarioContext:
         already knows the layout is valid (``known_valid``: the result is the same), with the
         physical properties of ``physics`` (a :class:`~rgmcad.scene.perturbation.PhysicsDraw`;
         None: the scenario's)."""
+        return self.simulate_values(self.values(x), check=not known_valid, physics=physics)
+
+    def simulate_values(self, values: np.ndarray, check: bool = True,
+                        physics=None) -> SimRecord:
+        """Simulate the layout of real parameter ``values`` (d,) exactly as given (as
+        ``rgmcad simulate --value`` does), the validity test included unless ``check`` is
+        False; ``physics`` as in :meth:`simulate_one`."""
         from rgmcad.sim.run import simulate
 
         if self._engine is None:
             from rgmcad.sim.engine import Engine
 
             self._engine = Engine(renderer=False)
-        r = simulate(self.scenario, self.values(x), self.parts, check=not known_valid,
+        r = simulate(self.scenario, np.asarray(values, float), self.parts, check=check,
                      engine=self._engine, cache=self.cache, physics=physics)
         labels = r.labels()
         events = {e.name: (labels[e.name], e.time) for e in r.events}
         return SimRecord(r.outcome is not Outcome.INVALID, r.outcome, events,
                          float(r.wall_time))
-
-    def simulate_values(self, values: np.ndarray) -> SimRecord:
-        """Simulate the layout of real parameter ``values`` (d,) exactly as given (as
-        ``rgmcad simulate --value`` does), the validity test included."""
-        from rgmcad.sim.run import simulate
-
-        if self._engine is None:
-            from rgmcad.sim.engine import Engine
-
-            self._engine = Engine(renderer=False)
-        r = simulate(self.scenario, np.asarray(values, float), self.parts, engine=self._engine,
-                     cache=self.cache)
-        labels = r.labels()
-        return SimRecord(r.outcome is not Outcome.INVALID, r.outcome,
-                         {e.name: (labels[e.name], e.time) for e in r.events}, float(r.wall_time))
 
     def close(self) -> None:
         """Disconnect the engine and drop the derived data."""
