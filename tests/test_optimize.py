@@ -471,3 +471,23 @@ def test_evaluate_warns_when_a_layout_fails_even_placed_almost_exactly(tmp_path,
     assert warning and 1 <= int(warning.group(1)) <= 9
     assert main([*argv, "solved"]) == 0  # far from the edge, every one works: no warning
     assert "warning" not in capsys.readouterr().out
+
+
+def test_a_finished_run_asked_for_with_another_hand_is_refused_not_shown(reference, tmp_path):
+    # the user optimised for +-2 mm, then asks the same run for +-6 mm: its figures and its
+    # choice are for +-2 mm, so it says so and names the command that answers the question
+    from rgmcad.errors import UsageError
+    from rgmcad.runs.hand import Hand
+
+    ref_run, ref = reference
+    run = tmp_path / "run"
+    shutil.copytree(ref_run, run)
+    with pytest.raises(UsageError) as error:
+        _optimize(run, hand=Hand(6.0, 6.0))
+    assert error.value.where == "--hand" and "rgmcad evaluate" in str(error.value)
+    assert "+-2 mm" in str(error.value) and str(run / "layout.json") in str(error.value)
+    with pytest.raises(UsageError) as error:
+        _optimize(run, physics=None)
+    assert error.value.where == "--physics" and "friction +-20%" in str(error.value)
+    assert _optimize(run).summary["vector"] == ref["vector"]  # as it was made: shown
+    assert _optimize(run, hand=None).finished_before  # no hand asked for: nothing to compare

@@ -24,7 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
-from rgmcad.errors import ScenarioError
+from rgmcad.errors import ScenarioError, UsageError
 from rgmcad.parts.family import family_digest
 from rgmcad.parts.store import DEFAULT_BUILD_DIR
 from rgmcad.runs.checks import (
@@ -217,6 +217,7 @@ def optimize_scenario(
                    events=list(scenario.events)) as store):
         summary = store.read_result()  # None unless finished, with its model intact
         if summary is not None and _readable_json(run_dir / LAYOUT_FILE):
+            _check_same_hand(summary, hand, physics, run_dir, scenario_path)
             return OptimizationRun(run_dir, _placed_in(summary, run_dir), True,
                                    time.perf_counter() - start)
         from rgmcad.learning import NoValidLayoutError, learn_and_optimize
@@ -302,6 +303,33 @@ def _no_folder_if_refused(run_dir: Path):
         if fresh and journal.is_file() and journal.stat().st_size == 0:
             shutil.rmtree(run_dir, ignore_errors=True)
         raise
+
+
+def _check_same_hand(summary: dict, hand: Hand | None, physics: PhysicsRanges | None,
+                     run_dir: Path, scenario_path) -> None:
+    """A finished run is shown as it is; asked for with another hand (or other physical
+    errors under it), its figures would answer a question nobody asked: refused, with the
+    command that measures its layout under the hand asked for."""
+    if hand is None:
+        return
+    stored = (summary.get("hand") or {}).get("hand")
+    physics_json = None if physics is None else physics.to_json()
+    if stored is not None and stored["physics"] == physics_json and all(
+            stored[k] == v for k, v in hand.to_json().items()):
+        return
+    if stored is None:
+        key, was = "--hand", "no hand (--hand off)"
+    elif stored["physics"] != physics_json:
+        old = stored["physics"]
+        key, was = "--physics", "physical errors " + (
+            "off" if old is None else PhysicsRanges(**old).describe())
+    else:
+        key, was = "--hand", "a hand " + Hand(stored["position_mm"], stored["heading_deg"]
+                                              ).describe()
+    raise UsageError(key, "", f"{run_dir} finished for {was} and chose its layout for it; "
+                     f"measure that layout under yours with `rgmcad evaluate {scenario_path} "
+                     f"--layout {run_dir / LAYOUT_FILE} {key} ...`, or optimise for yours in "
+                     "a new run (--run DIR)")
 
 
 def _placed_in(summary: dict, run_dir: Path) -> dict:
