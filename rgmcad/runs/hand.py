@@ -359,7 +359,9 @@ class HandSettings:
     batches of ``batch`` (at least ``minimum``, at most ``maximum``) until its 95 % interval's
     half-width is at most ``precision``; ``curve_samples`` per size on the curve; each part
     alone ``weak_first`` times, up to ``weak_most`` where it failed; ``careful_samples`` per
-    smaller hand for the weakest links (:func:`careful_hands`)."""
+    smaller hand for the weakest links (:func:`careful_hands`); ``bound_samples`` per printed
+    tolerance at its bound (:mod:`rgmcad.runs.hand_bounds`; at most ``minimum``: the
+    headline's first builds are the comparison)."""
 
     precision: float = 0.05
     batch: int = 32
@@ -369,12 +371,14 @@ class HandSettings:
     weak_first: int = 8
     weak_most: int = 32
     careful_samples: int = 16
+    bound_samples: int = 32
 
 
-HAND_SETTINGS = {"small": HandSettings(0.2, 16, 16, 16, 0, 2, 4, 0),
+HAND_SETTINGS = {"small": HandSettings(0.2, 16, 16, 16, 0, 2, 4, 0, 0),
                  "default": HandSettings()}
 """By ``optimize``'s budget (others: ``"default"``'s); ``evaluate`` uses ``"default"``. No
-curve and no care for the weak links at ``small`` (a quick look; 0 builds: not measured)."""
+curve, no care for the weak links and no tolerance under the hand at ``small`` (a quick look;
+0 builds: not measured)."""
 
 
 def hand_figures(executor, problem: ScenarioProblem, x, hand: Hand,

@@ -22,7 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 
 __all__ = ["POINTS", "BISECTIONS", "JITTER", "CONFIRM_STEPS", "CheckedTolerances",
-           "check_tolerances", "confirm_as_printed", "values_success_on", "printed_step",
+           "check_tolerances", "confirm_as_printed", "values_success_on", "printed_offsets", "printed_step",
            "sides_of", "flags_of", "success_of", "pushed_against", "narrowed_note",
            "tolerance_header"]
 
@@ -164,7 +164,6 @@ def confirm_as_printed(checked: CheckedTolerances, x: np.ndarray, scenario,
     away can fail. A side that fails steps in by one printed step, at most ``steps`` times,
     then to 0; every side printed is then a real layout that succeeded.
     ``simulate_values(V)``: (n, d) real values -> (n,) bool success."""
-    from rgmcad.runs.report import tolerance_text
     from rgmcad.scene.design_space import bounds
 
     low, high = bounds(scenario)
@@ -172,8 +171,7 @@ def confirm_as_printed(checked: CheckedTolerances, x: np.ndarray, scenario,
     values = low + np.asarray(x, float) * width  # as the run's summary states them
     unit = np.array([1.0 if f.unit == "deg" else 1000.0 for f in scenario.free])
     out, narrowed = checked.tolerances.copy(), np.zeros_like(checked.narrowed)
-    printed = {(j, k): float(tolerance_text(out[j, k] * width[j] * unit[j])) / unit[j]
-               for j in range(len(values)) for k in range(2) if out[j, k] > 0}
+    printed = printed_offsets(out, scenario)
     simulations = checked.simulations
     for _ in range(steps + 1):
         sides = [s for s, p in printed.items() if p > 0]
@@ -194,6 +192,19 @@ def confirm_as_printed(checked: CheckedTolerances, x: np.ndarray, scenario,
     for j, k in printed:  # no printed place left that works (or none to print)
         out[j, k] = 0.0
     return CheckedTolerances(out, narrowed | checked.narrowed, simulations)
+
+
+def printed_offsets(tolerances: np.ndarray, scenario) -> dict[tuple[int, int], float]:
+    """``{(j, k): offset}``: each side of (d, 2) normalised ``tolerances`` above 0 as printed
+    (:func:`~rgmcad.runs.report.tolerance_text`: rounded down to 0.1 mm or 0.1 degree), in
+    the parameter's real unit (metres or degrees), 0 where that rounds to nothing."""
+    from rgmcad.runs.report import tolerance_text
+    from rgmcad.scene.design_space import bounds
+
+    low, high = bounds(scenario)
+    unit = np.array([1.0 if f.unit == "deg" else 1000.0 for f in scenario.free])
+    return {(j, k): float(tolerance_text(tolerances[j, k] * (high[j] - low[j]) * unit[j]))
+            / unit[j] for j in range(len(unit)) for k in range(2) if tolerances[j, k] > 0}
 
 
 def printed_step(scenario) -> np.ndarray:
@@ -282,9 +293,11 @@ def narrowed_note(s: dict) -> str:
         down, up = check["model_tolerances"][name]
         said += [f"{name} {sign}{t * k:.1f} {unit}" for sign, t, here in (
             ("-", down, "low"), ("+", up, "high")) if side in (here, "both")]
+    by_hand = ((s.get("hand") or {}).get("tolerances") or {}).get("narrowed")
     return ("a tolerance marked 'narrowed by simulation' is where the model was too generous "
-            f"(it said {', '.join(said)}): the layout failed in simulation inside that bound, "
-            "so the side stops where it still succeeded.")
+            f"(it said {', '.join(said)}): the layout failed in simulation inside that bound"
+            + (", or worked less often there when built by hand" if by_hand else "")
+            + ", so the side stops where it still succeeded.")
 
 
 def tolerance_header(s: dict) -> str:
@@ -293,6 +306,12 @@ def tolerance_header(s: dict) -> str:
     if not check:
         return ("placement tolerances (down / up), as the model predicts them (one parameter "
                 "moved alone; `rgmcad simulate ... --value NAME=V` tries one)")
-    return (f"placement tolerances (down / up), one parameter moved alone: the model's, each "
+    text = (f"placement tolerances (down / up), one parameter moved alone: the model's, each "
             f"side then simulated at {check['points_per_side']} places up to its bound (its "
             f"bound included; {check['simulations']} simulations), and narrowed where one failed")
+    by_hand = (s.get("hand") or {}).get("tolerances")
+    if by_hand:
+        text += (f"; then at its bound with every part placed by hand ({by_hand['samples']} "
+                 f"builds, the same as the layout's), and narrowed where it worked in fewer "
+                 f"of them than the layout, by more than {by_hand['slack']}")
+    return text

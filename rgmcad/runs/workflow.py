@@ -50,6 +50,7 @@ from rgmcad.runs.tolerance_check import (
     POINTS,
     check_tolerances,
     confirm_as_printed,
+    flags_of,
     printed_step,
     success_of,
     values_success_on,
@@ -282,6 +283,10 @@ def optimize_scenario(
                 by_hand = hand_figures(executor, problem, chosen["x"], hand, physics, seed,
                                        hand_settings, progress, builds=builds)
                 by_hand = {**by_hand, "seed": seed}
+                if checked is not None and hand_settings.bound_samples:
+                    checked, by_hand = _tolerances_by_hand(
+                        checked, chosen["x"], model_view[-1], result.settings, learner_problem,
+                        executor, builds, hand, physics, seed, hand_settings, progress, by_hand)
         finally:
             executor.close()
         summary = write_outputs(scenario, store, learner_problem, result, chosen,
@@ -303,6 +308,31 @@ def _no_folder_if_refused(run_dir: Path):
         if fresh and journal.is_file() and journal.stat().st_size == 0:
             shutil.rmtree(run_dir, ignore_errors=True)
         raise
+
+
+def _tolerances_by_hand(checked, x, model_tol, settings, learner_problem, executor, builds,
+                        hand, physics, seed, hand_settings, progress, by_hand):
+    """Each printed side at its bound with every part placed by hand
+    (:mod:`rgmcad.runs.hand_bounds`), those narrowed there confirmed again as printed; the
+    sides that stop against a part are left alone. Returns (checked, by_hand with its
+    ``tolerances``)."""
+    from rgmcad.learning import overlap_ends
+    from rgmcad.runs.hand_bounds import hand_at_bounds
+
+    x = np.asarray(x, dtype=float)
+    meet = flags_of(overlap_ends(x, model_tol, settings, learner_problem.problem.validity)) \
+        & ~checked.narrowed
+    scenario = learner_problem.problem.scenario
+    progress.stage("tolerances by hand", int(np.count_nonzero(checked.tolerances > 0))
+                   * hand_settings.bound_samples)
+    bounds = hand_at_bounds(checked, x, scenario, builds, hand, physics, seed,
+                            hand_settings.bound_samples, meet, hand_settings.precision)
+    if bounds.narrowed.any():
+        checked = confirm_as_printed(bounds.checked, x, scenario, values_success_on(executor))
+    else:
+        checked = bounds.checked
+    return checked, {**by_hand, "tolerances": bounds.to_json(scenario),
+                     "simulations": by_hand["simulations"] + bounds.simulations}
 
 
 def _check_same_hand(summary: dict, hand: Hand | None, physics: PhysicsRanges | None,
