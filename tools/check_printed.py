@@ -3,9 +3,13 @@ reviewer) would: the run's layout with one parameter moved by the number printed
 or 0.1 degree), set as a real value, the validity test included. A side printed "push
 against the X" is placed at its bound (the parts just clear).
 
-    uv run python tools/check_printed.py SCENARIO RUN_DIR [SCENARIO RUN_DIR ...]
+    uv run python tools/check_printed.py [--hand N] SCENARIO RUN_DIR [SCENARIO RUN_DIR ...]
 
-Prints, per run, the sides checked and those holding, and each side that does not.
+Prints, per run, the sides checked and those holding, and each side that does not. With
+``--hand N``: each numeric side also placed at its bound with every other part placed by the
+run's hand (its summary's hand and physical errors), on N builds the run never simulated
+(draws 1000 onwards), against the layout on the same builds: a side holds where it works in
+no more than the run's precision (as a share of N) fewer of them.
 """
 
 import json
@@ -14,16 +18,52 @@ from pathlib import Path
 
 import numpy as np
 
-from rgmcad.runs.problem import ScenarioContext
+from rgmcad.runs.executor import make_executor
+from rgmcad.runs.hand import Builds, Hand
+from rgmcad.runs.problem import ScenarioContext, ScenarioProblem
 from rgmcad.runs.report import side_texts, user_scale
+from rgmcad.scene.design_space import vector_from_values
+from rgmcad.scene.perturbation import PhysicsDraw, PhysicsRanges
 from rgmcad.sim.run import Outcome, simulate
 
+FRESH = 1000  # the first draw index of the new builds: beyond any run's
 
-def check(scenario_path: str, run_dir: str) -> tuple[int, int, list[str]]:
+
+def by_hand(scenario_path: str, summary: dict, sides: list, n: int) -> tuple[int, list[str]]:
+    """Sides ``[(j, real values, label)]`` that hold under the run's hand on ``n`` new
+    builds, and a line for each that does not."""
+    head = summary["hand"]["hand"]
+    hand = Hand(head["position_mm"], head["heading_deg"])
+    physics = None if head["physics"] is None else PhysicsRanges(**head["physics"])
+    draws = [PhysicsDraw(hand.ranges(physics), summary["seed"], FRESH + i) for i in range(n)]
+    slack = int(np.floor(summary["hand"]["precision"] * n + 1e-9))
+    problem = ScenarioProblem(scenario_path)
+    executor = make_executor(None, problem.context)
+    held, bad = 0, []
+    try:
+        builds = Builds(executor)
+
+        def works(values):
+            x = vector_from_values(problem.scenario, values)
+            return sum(r.outcome is Outcome.SUCCESS for r in builds(x, draws))
+
+        base = works(np.array(list(summary["values"].values())))
+        for values, label in sides:
+            at = works(values)
+            if base - at <= slack:
+                held += 1
+            else:
+                bad.append(f"{label}: built by hand {at} of {n}, the layout {base} of {n}")
+    finally:
+        executor.close()
+    return held, bad
+
+
+def check(scenario_path: str, run_dir: str, hand: int = 0):
     summary = json.loads((Path(run_dir) / "result.json").read_text())
     context = ScenarioContext.load(scenario_path)
     values = np.array([summary["values"][f.name] for f in context.scenario.free])
-    checked, held, bad = 0, 0, []
+    checked, held, bad, numeric = 0, 0, [], []
     try:
         for j, f in enumerate(context.scenario.free):
             k, unit = user_scale(f)
@@ -38,6 +78,8 @@ def check(scenario_path: str, run_dir: str) -> tuple[int, int, list[str]]:
                 v = values.copy()
                 v[j] = values[j] + sign * moved
                 result = simulate(context.scenario, v, context.parts, cache=context.cache)
+                if not text.startswith("push"):
+                    numeric.append((v, f"{f.name} {text}"))
                 checked += 1
                 if result.outcome is Outcome.SUCCESS:
                     held += 1
@@ -45,21 +87,33 @@ def check(scenario_path: str, run_dir: str) -> tuple[int, int, list[str]]:
                     bad.append(f"{f.name} {text} -> {result.outcome.value}")
     finally:
         context.close()
-    return checked, held, bad
+    if not hand:
+        return checked, held, bad, None
+    return checked, held, bad, (len(numeric), *by_hand(scenario_path, summary, numeric, hand))
 
 
 def main(argv: list[str]) -> int:
-    if len(argv) % 2:
+    hand = 0
+    if argv[:1] == ["--hand"] and len(argv) > 1:
+        hand, argv = int(argv[1]), argv[2:]
+    if len(argv) % 2 or not argv:
         print(__doc__, file=sys.stderr)
         return 2
-    total = [0, 0]
+    total = [0, 0, 0, 0]
     for scenario, run in zip(argv[::2], argv[1::2], strict=True):
-        checked, held, bad = check(scenario, run)
+        checked, held, bad, under_hand = check(scenario, run, hand)
         total[0] += checked
         total[1] += held
         print(f"{scenario} {run}: {held} of {checked} printed sides hold"
               + "".join(f"\n  {b}" for b in bad))
-    print(f"all: {total[1]} of {total[0]} printed sides hold")
+        if under_hand is not None:
+            sides, ok, lines = under_hand
+            total[2] += sides
+            total[3] += ok
+            print(f"  built by hand ({hand} new builds): {ok} of {sides} numeric sides hold"
+                  + "".join(f"\n  {b}" for b in lines))
+    print(f"all: {total[1]} of {total[0]} printed sides hold"
+          + (f"; built by hand, {total[3]} of {total[2]}" if hand else ""))
     return 0
 
 
