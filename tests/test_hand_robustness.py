@@ -173,6 +173,9 @@ def test_evaluate_states_how_often_a_built_layout_works(tmp_path):
     # progress: each stage counted against its total (at most so many builds), time left
     assert re.search(r"builds within \+-4 mm and \+-1 deg: +\d+%\|.*\| \d+/320 \[", err)
     assert re.search(r"success against hand error: +\d+%\|.*\| \d+/144 \[", err)
+    # the headline as soon as it is known, before the stages that follow it
+    early = err.index("the curve and the weak links follow")
+    assert early < err.index("success against hand error") and "works " in err[:early]
     assert re.search(r"works \d+ % \[\d+, \d+\] of the time when each part is placed within "
                      r"\+-4 mm and \+-1 degrees", out)
     assert "+-10.0 mm, +- 2.5 deg" in out.replace("+-2.5", "+- 2.5")  # the hand's ratio kept

@@ -81,6 +81,14 @@ class SimulationBar:
         bar.set_postfix(works=self.built_successes, refresh=False)
         bar.update(1)
 
+    def measured(self, figures: dict) -> None:
+        """The headline as soon as it is known, above the bar (the rest follows)."""
+        if "hand" in figures and self.enabled:
+            from rgmcad.runs.hand_text import hand_headline
+
+            self._start().write(f"{hand_headline(figures)}; the curve and the weak links "
+                                "follow", file=sys.stderr)
+
     def _postfix(self, bar) -> None:
         shown = {"tested": self.n_tested} if self.count_tested else (
             {"replayed": self.replayed} if self.replayed else {})

@@ -411,6 +411,8 @@ def hand_figures(executor, problem: ScenarioProblem, x, hand: Hand,
     start = stage(f"builds {hand.describe()}", s.maximum)
     rate = measure_rate(simulate, hand, physics, seed, precision=s.precision, batch=s.batch,
                         minimum=s.minimum, maximum=s.maximum)
+    if progress is not None:
+        progress.measured({"hand": rate.to_json()})
     curve_at = stage("success against hand error", max(s.curve_samples * (len(CURVE_MM) - 1), 1))
     curve = hand_curve(simulate, hand, physics, seed, known=rate, samples=s.curve_samples,
                        sizes_mm=CURVE_MM if s.curve_samples else ())

@@ -77,6 +77,10 @@ class RunProgress:
         """One more build of a layout placed by hand was simulated (:mod:`rgmcad.runs.hand`:
         not a layout of the run, not counted among its simulations)."""
 
+    def measured(self, figures: dict) -> None:
+        """A figure is known before the command ends (``{"hand": HandRate JSON}``: the
+        headline, before the curve and the weak links), for a person waiting on it."""
+
 
 @dataclass(frozen=True)
 class OptimizationRun:
