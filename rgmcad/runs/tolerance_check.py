@@ -312,6 +312,7 @@ def tolerance_header(s: dict) -> str:
     by_hand = (s.get("hand") or {}).get("tolerances")
     if by_hand:
         text += (f"; then at its bound with every part placed by hand ({by_hand['samples']} "
-                 f"builds, the same as the layout's), and narrowed where it worked in fewer "
-                 f"of them than the layout, by more than {by_hand['slack']}")
+                 f"builds, the layout's, {2 * by_hand['samples']} where that was not clear), "
+                 f"and narrowed where it worked in more than {by_hand['precision']:.0%} of "
+                 "them fewer than the layout")
     return text
