@@ -282,17 +282,17 @@ def test_optimize_progress_summary_store_and_next_step_agree(tmp_path, monkeypat
     assert "layout runs/simple-small-s3/layout.json" in capsys.readouterr().out
 
 
-def test_readme_optimize_examples_name_the_directories_they_write():
-    """Each ``rgmcad optimize`` line of the README with a ``# runs/...`` comment writes
-    there, and each ``--layout runs/...`` after it uses a directory written above it."""
+def test_documented_optimize_examples_name_the_directories_they_write():
+    """Each ``rgmcad optimize`` line of the how-to page "Optimise a layout" with a
+    ``# runs/...`` comment writes there, and each ``--layout runs/...`` after it uses a
+    directory written above it."""
     from rgmcad.cli import build_parser
     from rgmcad.cli.learning_settings import setting_changes
     from rgmcad.runs.workflow import default_run_dir
     from rgmcad.shipped import scenario_path
 
-    text = (ROOT / "README.md").read_text()
-    section = text.split("## Optimising a layout")[1].split("\n## ")[0]
-    blocks = [part.split("```")[0] for part in section.split("```sh")[1:]]
+    text = (ROOT / "docs" / "how-to" / "optimize.md").read_text()
+    blocks = [part.split("```")[0] for part in text.split("```sh")[1:]]
     assert len(blocks) >= 2
     lines = [line for block in blocks for line in block.strip().splitlines()]
     written = set()

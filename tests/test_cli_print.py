@@ -107,7 +107,7 @@ def test_tolerances_from_a_layout_file_are_printed(tmp_path, capsys):
     assert parts["bottom_track"] == [] and parts["ball"] == []
     frames = {f["name"]: f["notes"] for f in made["frames"]}
     assert frames == {"bottom_track_joint": ["z -2/+4 mm"]}
-    # and as numbers, the mapping the layout file gave (README: `tolerances`)
+    # and as numbers, the mapping the layout file gave (docs/how-to/print.md: `tolerances`)
     numbers = {p["name"]: p["tolerances"] for p in made["parts"]}
     assert numbers["top_track"] == {"top_track.x": [0.003, 0.003]}
     assert numbers["goblet"] == {"goblet.roll": [1.0, 2.0]} and numbers["ball"] == {}

@@ -1,7 +1,7 @@
 """Simulations on a Dask cluster (:mod:`rgmcad.runs.dask_executor`): a ``LocalCluster`` of two
 worker processes gives the serial executor's result, loses nothing when a worker is killed
 with SIGKILL mid-run, refuses workers of another rgmcad version in one line. With real
-``dask scheduler`` and ``dask worker`` processes started as the README says: a scheduler of
+``dask scheduler`` and ``dask worker`` processes started as docs/how-to/cluster.md says: a scheduler of
 another version is refused in one line; a scheduler killed mid-run stops the run in one
 line, and the same command resumes once a scheduler and workers are back."""
 
@@ -135,7 +135,7 @@ def _scheduler_address(log: Path, proc: subprocess.Popen, timeout: float = 120) 
 
 @contextlib.contextmanager
 def _machines(folder: Path, port: int = 0):
-    """The README's "several machines": ``dask scheduler`` (on ``port``; 0: one it picks) and
+    """docs/how-to/cluster.md, "Several machines": ``dask scheduler`` (on ``port``; 0: one it picks) and
     two ``dask worker ADDRESS``, each worker in an empty folder of its own (no scenario, no
     parts); yields the address the scheduler printed and the processes."""
     log = folder / f"scheduler-{port}-{time.monotonic_ns()}.log"
@@ -192,7 +192,7 @@ def test_a_scheduler_killed_mid_run_stops_it_in_one_line_and_it_resumes(serial, 
             time.sleep(0.1)
         os.kill(scheduler.pid, signal.SIGKILL)  # its machine gone
         out, err = proc.communicate(timeout=120)
-        for w in workers:  # a dask worker ends once its scheduler is gone (README)
+        for w in workers:  # a dask worker ends once its scheduler is gone (docs/how-to/cluster.md)
             w.wait(timeout=60)
     assert proc.returncode == 2, err
     errors = [ln for ln in err.splitlines() if ln.startswith("rgmcad: error")]

@@ -3,8 +3,9 @@
 A scenario names its objects (a part family, its parameters, physical properties, a pose
 relative to a parent), generated domino runs, joints, the free layout parameters with their
 ranges (the design space), the causal graph of expected events, the simulation settings and
-named layouts. ``docs`` in the README describe the format; this module checks every key and
-raises :class:`~rgmcad.errors.ScenarioError` naming the file, the key and what is allowed.
+named layouts. docs/how-to/scenario.md and the generated reference page (rgmcad.reference)
+describe the format; this module checks every key and raises
+:class:`~rgmcad.errors.ScenarioError` naming the file, the key and what is allowed.
 The values it returns are the types of :mod:`rgmcad.scene.model`.
 """
 

@@ -5,8 +5,8 @@ and how big a scenario may grow.
 The loader reads every number through these specs (:meth:`Number.read`): a value that is not
 a number (a TOML boolean is not), not finite, or out of range is refused with one line naming
 the file, the key and what is allowed. Every range is finite, so a value that passes is a
-finite float (or a bounded int) whatever the file holds. The README's table of keys is
-:func:`markdown` (a test keeps the two equal).
+finite float (or a bounded int) whatever the file holds. The documentation's table of keys
+(the generated reference page of scenario files) is :func:`markdown`.
 
 Warnings go through :mod:`logging` (the library never prints) and only once the whole file
 has loaded (:func:`warnings_after_loading`): a refused file gives its one error line alone.
@@ -335,7 +335,8 @@ def rows() -> Iterator[tuple[str, str, object]]:
 
 
 def markdown() -> str:
-    """The README's table of every number's unit and allowed range, and the size limits."""
+    """The table of every number's unit and allowed range, and the size limits (the
+    reference page of scenario files shows it)."""
     lines = ["| in | keys | allowed | usual (a warning outside) |", "|---|---|---|---|"]
     for where, keys, spec in rows():
         usual = getattr(spec, "usual", (-math.inf, math.inf))
