@@ -15,6 +15,7 @@ import logging
 import os
 import sys
 
+from rgmcad.cli.common import scheduler_from_environment
 from rgmcad.cli.parser import Parser, add_global_options
 from rgmcad.cli.paths import default_build_dir, output_dir
 from rgmcad.errors import RgmcadError
@@ -85,6 +86,7 @@ def main(argv: list[str] | None = None) -> int:
             args.build_dir = str(default_build_dir())
         if args.uses_build_dir:  # a folder this command may write: checked before the work
             output_dir(args.build_dir, "--build-dir", writable=False)
+        scheduler_from_environment(args)  # $RGMCAD_SCHEDULER: checked as --scheduler is
         if hasattr(args, "scenario"):
             from rgmcad.shipped import scenario_path
 

@@ -85,10 +85,40 @@ def _note_far_value(f, value: float) -> None:
 
 
 def add_scheduler_args(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--scheduler", metavar="ADDRESS", default=None,
+    p.add_argument("--scheduler", metavar="ADDRESS", default=None, type=scheduler_address,
                    help="run the simulations on a Dask cluster: a scheduler's address "
-                   "(tcp://host:8786) or local:N (N worker processes here); default: "
-                   "$RGMCAD_SCHEDULER, else --workers processes; results do not depend on it")
+                   "(tcp://host:8786; one that does not answer within 3 s is refused) or "
+                   "local:N (N worker processes here); default: $RGMCAD_SCHEDULER, else "
+                   "--workers processes; results do not depend on it")
+
+
+def scheduler_address(text: str) -> str:
+    """``type=`` of ``--scheduler``: its form checked as it is parsed (no connection yet)."""
+    from rgmcad.errors import UsageError
+    from rgmcad.runs.executor import check_scheduler
+
+    try:
+        address = check_scheduler(text, "--scheduler")
+    except UsageError as exc:
+        raise argparse.ArgumentTypeError(f"{exc.key}: {exc.message}") from None
+    if not address.startswith("local:"):  # asked now, answered while the command loads
+        from rgmcad.runs.dask_executor import ask_scheduler
+
+        ask_scheduler(address)
+    return address
+
+
+def scheduler_from_environment(args) -> None:
+    """``$RGMCAD_SCHEDULER`` as ``--scheduler`` of a command that takes it and was not given
+    it: checked, and its scheduler asked, as the command starts (one line naming it)."""
+    from rgmcad.runs.executor import scheduler_from_env
+
+    if getattr(args, "scheduler", "") is None:
+        args.scheduler = scheduler_from_env(None)
+        if args.scheduler is not None and not args.scheduler.startswith("local:"):
+            from rgmcad.runs.dask_executor import ask_scheduler
+
+            ask_scheduler(args.scheduler)
 
 
 def parts_dir_arg(args) -> Path | None:

@@ -22,12 +22,21 @@ trimming (:func:`_keep_freed_memory`). A worker that dies mid-run loses nothing:
 scheduler runs its tasks elsewhere. A scheduler that disappears stops the run with one line;
 every finished simulation is in the run directory (on the client), so the same command
 resumes once a scheduler and workers are back (a ``dask worker`` ends with its scheduler).
+
+An address is checked before any connection: its form first
+(:func:`~rgmcad.runs.executor.check_scheduler`), then a scheduler must answer a first question
+within :data:`CONNECT_TIMEOUT` seconds (:func:`ask_scheduler`, asked in a loop of our own: a
+Dask client that fails to connect hangs for twice its timeout when it is collected); an
+address of another form, nothing answering there, or something that is not a scheduler is
+one line naming ``--scheduler`` (or ``RGMCAD_SCHEDULER``).
 """
 
 from __future__ import annotations
 
+import asyncio
 import ctypes
 import hashlib
+import struct
 import threading
 import time
 import warnings
@@ -41,7 +50,7 @@ from distributed.versions import VersionMismatchWarning
 
 from rgmcad.errors import RgmcadError
 
-__all__ = ["DaskExecutor", "fingerprint", "LOCAL_CONFIG"]
+__all__ = ["DaskExecutor", "fingerprint", "LOCAL_CONFIG", "ask_scheduler", "CONNECT_TIMEOUT"]
 
 LOCAL_CONFIG = {"distributed.worker.profile.enabled": False,
                 "distributed.scheduler.worker-saturation": float("inf"),
@@ -163,7 +172,12 @@ class DaskExecutor:
     scheduler : str
         A scheduler's address (``tcp://host:8786``) or ``local:N``: a
         :class:`~distributed.LocalCluster` of N worker processes (one thread each), started
-        here and closed with the executor.
+        here and closed with the executor. Its form is checked first
+        (:func:`~rgmcad.runs.executor.check_scheduler`), then a scheduler must answer there
+        within :data:`CONNECT_TIMEOUT` seconds; else one line (:class:`RgmcadError`) naming
+        where the address was given (``--scheduler`` or ``RGMCAD_SCHEDULER``).
+    connect_timeout : float, default 20
+        Seconds the client has to connect once the scheduler has answered.
     payload : ContextPayload, optional
         What builds each worker's context (see the module docstring); needed by
         :meth:`map_context`.
@@ -183,35 +197,46 @@ class DaskExecutor:
 
         from distributed import Client, LocalCluster
 
+        from rgmcad.runs.executor import SchedulerAddress, check_scheduler
+
+        if not isinstance(scheduler, SchedulerAddress):
+            scheduler = check_scheduler(scheduler)  # its form, before any connection
         # this process speaks for the cluster in one line (RgmcadError); distributed's own
         # complaints (reconnecting, lost workers, recomputed tasks) go to the scheduler's log
         logging.getLogger("distributed.client").setLevel(logging.CRITICAL)
-        self.address = scheduler
+        self.address, self.where = str(scheduler), scheduler.where
         self.max_batch = max_batch
         self.tasks_per_worker = tasks_per_worker
         self._counted = (-1e9, 1)
         self.expected = fingerprint()
         self._cluster = None
-        try:
-            if scheduler.startswith("local:"):
-                n = _local_workers(scheduler)
-                logging.getLogger("distributed").setLevel(logging.ERROR)
+        if scheduler.startswith("local:"):
+            logging.getLogger("distributed").setLevel(logging.ERROR)
+            try:
                 with dask.config.set(LOCAL_CONFIG):
-                        self._cluster = LocalCluster(n_workers=n, threads_per_worker=1,
-                                                 processes=True,
+                    self._cluster = LocalCluster(n_workers=int(scheduler[6:]), processes=True,
+                                                 threads_per_worker=1,
                                                  scheduler_kwargs={"dashboard": False})
                 self.client = Client(self._cluster, set_as_default=False)
-            else:
-                # Dask's table of every differing package: our fingerprint check below says
+            except Exception as exc:  # noqa: BLE001 - no processes, no ports: one line
+                self.close()
+                raise RgmcadError(self.where, self.address, "cannot start the local cluster "
+                                  f"({type(exc).__name__}: {exc})") from None
+        else:
+            # a Client that fails to connect hangs for twice its timeout when collected:
+            # first a short question, in a loop of our own, that anything there must answer
+            _scheduler_answers(self.address, self.where)
+            try:  # Dask's table of every differing package: our fingerprint check below says
                 # in one line what matters to results
                 with warnings.catch_warnings():
                     warnings.simplefilter("ignore", VersionMismatchWarning)
-                    self.client = Client(scheduler, timeout=connect_timeout,
+                    self.client = Client(self.address, timeout=connect_timeout,
                                          set_as_default=False)
-        except (OSError, TimeoutError) as exc:
-            self.close()
-            raise RgmcadError(scheduler, "", "no Dask scheduler answers there "
-                              f"({type(exc).__name__}); start one or check --scheduler") from None
+            except Exception as exc:  # noqa: BLE001 - it answered the question, then not this
+                self.close()
+                raise RgmcadError(self.where, self.address, "the Dask scheduler there stopped "
+                                  f"answering ({type(exc).__name__}); check it and run the same "
+                                  "command again") from None
         try:
             self._check_versions()
             self.name = None
@@ -245,7 +270,7 @@ class DaskExecutor:
         versions.update((f"worker {w}", v) for w, v in sorted(workers.items()))
         for where, version in versions.items():
             if version != self.expected:
-                raise _refusal(self.address, where, version, self.expected)
+                raise _refusal(self.where, self.address, where, version, self.expected)
 
     def map(self, fn, items):
         return self._submit(_apply_batch, (self.expected, fn), items)
@@ -263,7 +288,7 @@ class DaskExecutor:
                                       [items[i:i + size] for i in range(0, len(items), size)],
                                       pure=False) if items else []
         except Exception as exc:  # noqa: BLE001
-            raise _lost(self.address, exc) from None
+            raise _lost(self.where, self.address, exc) from None
         return self._results(futures)
 
     def _results(self, futures):
@@ -274,16 +299,16 @@ class DaskExecutor:
                 try:
                     batch = f.result()
                 except VersionRefused as exc:
-                    raise RgmcadError(self.address, "", f"a worker runs another {exc}; "
+                    raise RgmcadError(self.where, self.address, f"a worker runs another {exc}; "
                                       "install the client's rgmcad on every worker") from None
                 except KilledWorker as exc:
-                    raise RgmcadError(self.address, "", f"tasks killed their workers again and "
+                    raise RgmcadError(self.where, self.address, f"tasks killed their workers again and "
                                       f"again ({exc}); see the workers' logs") from None
                 except RgmcadError:
                     raise
                 except Exception as exc:
                     if _is_connection_loss(exc, self.client):
-                        raise _lost(self.address, exc) from None
+                        raise _lost(self.where, self.address, exc) from None
                     raise
                 yield from batch
         finally:
@@ -321,22 +346,92 @@ def task_size(n: int, slots: int, max_batch: int) -> int:
     return max(1, -(-n // (slots * waves)))
 
 
-def _local_workers(scheduler: str) -> int:
-    from rgmcad.runs.executor import max_workers
-
-    try:
-        n = int(scheduler.split(":", 1)[1])
-    except ValueError:
-        n = 0
-    if not 1 <= n <= max_workers():
-        raise RgmcadError(scheduler, "", f"local:N needs N from 1 to {max_workers()}")
-    return n
+CONNECT_TIMEOUT = 3.0
+"""Seconds a scheduler has to answer a first question (``identity``: its kind and address)
+before the executor gives up on it: a scheduler answers in milliseconds, even a busy one or
+one across the world; nothing listening there (Dask tries again until the time is up), a
+host that does not answer, or a name no DNS knows cost this long."""
 
 
-def _refusal(address: str, where: str, version, expected: str) -> RgmcadError:
+_ASKED: dict[str, tuple[threading.Thread, dict, float]] = {}
+"""Questions to schedulers under way: address -> (thread, its answer, when to stop waiting)."""
+
+
+def ask_scheduler(address: str, timeout: float = CONNECT_TIMEOUT) -> None:
+    """Start asking whatever listens at ``address`` what it is (``identity``), in a thread
+    and an event loop of our own, for at most ``timeout`` seconds; the executor collects the
+    answer. The CLI asks as soon as ``--scheduler`` is parsed, so the question runs while
+    the command loads its scenario and parts."""
+    if address in _ASKED:
+        return
+
+    async def ask():
+        from distributed.comm import connect
+        from distributed.security import Security
+
+        comm = await connect(address, timeout=timeout,
+                             **Security().get_connection_args("client"))
+        try:
+            await comm.write({"op": "identity", "reply": True})
+            return await comm.read()
+        finally:
+            comm.abort()
+
+    def run():
+        try:
+            _listens(address, timeout)  # Dask tries a refused connection again and again
+            answer["reply"] = asyncio.run(asyncio.wait_for(ask(), timeout))
+        except BaseException as exc:  # noqa: BLE001 - anything at all: said in one line
+            answer["error"] = exc
+
+    answer: dict = {}
+    thread = threading.Thread(target=run, name="rgmcad-ask-scheduler", daemon=True)
+    thread.start()
+    # a DNS lookup may outlive the loop's own timeout: we stop waiting a little after it
+    _ASKED[address] = (thread, answer, time.monotonic() + timeout + 1.0)
+
+
+def _listens(address: str, timeout: float) -> None:
+    """ConnectionRefusedError at once when nothing listens at a TCP ``address``."""
+    import socket
+
+    scheme, _, place = address.partition("://")
+    if scheme in ("tcp", "tls", "ws", "wss"):
+        host, _, port = place.rpartition(":")
+        socket.create_connection((host.strip("[]"), int(port)), timeout=timeout).close()
+
+
+def _scheduler_answers(address: str, where: str, timeout: float = CONNECT_TIMEOUT) -> None:
+    """Wait for the answer of :func:`ask_scheduler` (asked now if not yet); an
+    :class:`RgmcadError` naming ``where`` unless a Dask scheduler answered."""
+    ask_scheduler(address, timeout)
+    thread, answer, deadline = _ASKED.pop(address)
+    thread.join(max(0.0, deadline - time.monotonic()))
+    error, reply = answer.get("error"), answer.get("reply")
+    if not answer or isinstance(error, TimeoutError) or (
+            isinstance(error, OSError) and "Timed out" in str(error)):
+        why = (f"no Dask scheduler answers there within {timeout:g} s (nothing listens on "
+               "that port, or the host is unreachable)")
+    elif isinstance(error, OSError):
+        why = f"no Dask scheduler answers there ({error.strerror or error})"
+    elif isinstance(error, (MemoryError, struct.error)):  # a length read from garbage
+        why = "what answers there does not speak Dask's protocol"
+    elif error is not None:
+        why = f"cannot talk to a Dask scheduler there ({type(error).__name__}: {error})"
+    elif not isinstance(reply, dict) or reply.get("type") != "Scheduler":
+        kind = reply.get("type") if isinstance(reply, dict) else None
+        why = (f"a Dask {kind} answers there, not the scheduler" if isinstance(kind, str)
+               else "what answers there is no Dask scheduler")
+    else:
+        return
+    raise RgmcadError(where, address, f"{why[:300]}; start one, or give the address the "
+                      "scheduler printed (tcp://HOST:PORT)")
+
+
+def _refusal(flag: str, address: str, where: str, version, expected: str) -> RgmcadError:
     runs = (f"cannot load rgmcad ({type(version).__name__}: {version})"
             if isinstance(version, BaseException) else f"runs rgmcad {version}")
-    return RgmcadError(address, "", f"{where} {runs}, this client {expected}: refused; "
+    return RgmcadError(flag, address, f"{where} {runs}, this client {expected}: refused; "
                        "install the client's rgmcad on the scheduler and every worker")
 
 
@@ -349,7 +444,7 @@ def _is_connection_loss(exc: BaseException, client) -> bool:
             or client.status not in ("running", "connecting"))
 
 
-def _lost(address: str, exc: BaseException) -> RgmcadError:
-    return RgmcadError(address, "", f"the Dask scheduler went away ({type(exc).__name__}); "
+def _lost(flag: str, address: str, exc: BaseException) -> RgmcadError:
+    return RgmcadError(flag, address, f"the Dask scheduler went away ({type(exc).__name__}); "
                        "the simulations done are in the run directory: run the same command "
                        "again once a scheduler is back")

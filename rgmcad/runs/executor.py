@@ -40,14 +40,93 @@ from functools import partial
 from typing import Any, Protocol
 
 __all__ = ["Executor", "SerialExecutor", "PoolExecutor", "make_executor", "default_workers",
-           "max_workers", "map_blocks", "parent_only", "scheduler_from_env", "SCHEDULER_ENV"]
+           "max_workers", "map_blocks", "parent_only", "scheduler_from_env", "SCHEDULER_ENV",
+           "SchedulerAddress", "check_scheduler"]
 
 SCHEDULER_ENV = "RGMCAD_SCHEDULER"
+SCHEDULER_SCHEMES = ("tcp", "tls", "ws", "wss", "ucx", "inproc")
+"""The address schemes of dask.distributed's comms (``distributed.comm.registry``); an
+address without one is ``tcp``, as Dask reads it."""
 
 
-def scheduler_from_env(scheduler: str | None) -> str | None:
-    """``scheduler``, else the environment's ``RGMCAD_SCHEDULER``, else None (no Dask)."""
-    return scheduler or os.environ.get(SCHEDULER_ENV) or None
+class SchedulerAddress(str):
+    """A checked scheduler address (:func:`check_scheduler`) that remembers where it was
+    given (``--scheduler`` or ``RGMCAD_SCHEDULER``), so an error about it names that."""
+
+    where = "--scheduler"
+
+
+def scheduler_from_env(scheduler: str | None) -> SchedulerAddress | None:
+    """``scheduler``, else the environment's ``RGMCAD_SCHEDULER`` (unset or empty: None, no
+    Dask), checked by :func:`check_scheduler` (an empty ``scheduler`` is refused)."""
+    if isinstance(scheduler, SchedulerAddress):
+        return scheduler
+    if scheduler is not None:
+        return check_scheduler(scheduler, "--scheduler")
+    given = os.environ.get(SCHEDULER_ENV)
+    return check_scheduler(given, SCHEDULER_ENV) if given else None
+
+
+def check_scheduler(address: str, where: str = "--scheduler") -> SchedulerAddress:
+    """``address`` if it has the form of a Dask scheduler's address: ``SCHEME://HOST:PORT``
+    (scheme one of :data:`SCHEDULER_SCHEMES` but inproc, which takes any location; a bare
+    ``HOST:PORT`` is tcp), ``HOST`` a name, an IPv4 address or an IPv6 one in brackets,
+    ``PORT`` 1 to 65535; or ``local:N``, N from 1 to :func:`max_workers`. Checked before any
+    connection, without importing Dask; else a :class:`~rgmcad.errors.UsageError` naming
+    ``where``. Whether a scheduler answers there is the executor's to find out."""
+    from rgmcad.errors import UsageError
+
+    text = address if isinstance(address, str) else ""
+    allowed = (f"expected a Dask scheduler's address, SCHEME://HOST:PORT with SCHEME one of "
+               f"{', '.join(SCHEDULER_SCHEMES[:-1])} (e.g. tcp://10.0.0.5:8786), or local:N "
+               f"(N worker processes here, 1 to {max_workers()})")
+    if text.lower().startswith("local:"):
+        n = text[6:]
+        if not (n.isascii() and n.isdigit() and 1 <= int(n) <= max_workers()):
+            raise UsageError(where, repr(text), f"local:N needs N from 1 to {max_workers()}")
+        text = f"local:{int(n)}"
+    else:
+        scheme, sep, place = text.partition("://")
+        scheme, place = (scheme.lower(), place) if sep else ("tcp", text)
+        if scheme not in SCHEDULER_SCHEMES:
+            raise UsageError(where, repr(text), f"unknown scheme {scheme!r}; {allowed}")
+        if not place or not place.isprintable() or any(c.isspace() for c in place):
+            raise UsageError(where, repr(text), allowed)
+        if scheme != "inproc":
+            problem = _host_port_problem(place)
+            if problem:
+                raise UsageError(where, repr(text), f"{problem}; {allowed}")
+        text = f"{scheme}://{place}"
+    checked = SchedulerAddress(text)
+    checked.where = where
+    return checked
+
+
+def _host_port_problem(place: str) -> str | None:
+    """What is wrong with ``HOST:PORT`` (None: nothing)."""
+    import ipaddress
+    import re
+
+    host, sep, port = place.rpartition(":")
+    if not sep or not host:
+        return "expected HOST:PORT after the scheme"
+    if not (port.isascii() and port.isdigit() and 1 <= int(port) <= 65535):
+        return f"port {port!r}: expected a number from 1 to 65535"
+    if host.startswith("[") and host.endswith("]"):
+        try:
+            ipaddress.IPv6Address(host[1:-1])
+            return None
+        except ValueError:
+            return f"host {host!r}: not an IPv6 address"
+    try:
+        name = host.encode("idna").decode("ascii")  # a name in any script, as DNS spells it
+    except UnicodeError:
+        return f"host {host!r}: not a host name"
+    labels = name.rstrip(".").split(".")
+    if len(name) > 253 or not all(re.fullmatch(r"[A-Za-z0-9_]([A-Za-z0-9_-]{0,61}[A-Za-z0-9_])?",
+                                               label) for label in labels):
+        return f"host {host!r}: not a host name or address"
+    return None
 
 
 class Executor(Protocol):

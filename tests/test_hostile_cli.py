@@ -1,0 +1,191 @@
+"""What a hostile user gives the CLI, and what they get back: one line naming the flag or file,
+what is allowed, exit status 2, within seconds, nothing lost. Each class of bad input is tried
+with a few hand-picked cases and a generated corpus (fixed seeds; counts in ``CASES``)."""
+
+from __future__ import annotations
+
+import random
+import socket
+import threading
+import time
+
+import pytest
+
+from tests._support import cli_output
+
+CASES = 14
+"""Generated cases per class and kind."""
+
+
+def refused(argv, *names, within: float = 5.0) -> str:
+    """``rgmcad ARGV`` refused: exit status 2, one line on stderr naming ``names``, no
+    traceback, within ``within`` seconds; the line."""
+    start = time.perf_counter()
+    code, out, err = cli_output(argv)
+    took = time.perf_counter() - start
+    lines = err.strip().splitlines()
+    assert code == 2 and len(lines) == 1, (argv, code, err[-2000:])
+    assert "Traceback" not in err and lines[0].startswith("rgmcad: error: "), err
+    for name in names:
+        assert name in lines[0], (name, lines[0])
+    assert took < within, (argv, took)
+    return lines[0]
+
+
+# --- 1. --scheduler ----------------------------------------------------------------------------
+
+
+def _closed_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+_BAD_PARTS = {
+    "scheme": ["bogus", "http", "ftp", "tcpp", "", "tcp:", "1", "ücx", "t cp"],
+    "host": ["", " ", "my cluster", "a..b", "-x", "x" * 70, "host\x00", "[zz]", "::1", "a/b",
+             "\u202ehost", "h\tost", "[::1"],
+    "port": ["", "0", "65536", "99999", "-1", "abc", "\u0663\u0664", "8786/x", "87 86", "1e3"],
+}
+
+
+def _malformed(rng: random.Random) -> str:
+    """A scheduler address with one or two defects on a good base."""
+    scheme, host, port = rng.choice(["tcp", "tls", "ws"]), rng.choice(["10.0.0.5", "node-1"]), "8786"
+    for part in rng.sample(sorted(_BAD_PARTS), rng.choice([1, 1, 2])):
+        value = rng.choice(_BAD_PARTS[part])
+        scheme, host, port = (value if part == "scheme" else scheme,
+                              value if part == "host" else host, value if part == "port" else port)
+    shape = rng.choice(["{s}://{h}:{p}", "{s}://{h}:{p}", "{h}:{p}", "{s}//{h}:{p}", "{s}://{h}"])
+    if shape in ("{h}:{p}",) and host in ("10.0.0.5", "node-1") and port == "8786":
+        port = "0"  # a bare HOST:PORT is a tcp address: keep a defect
+    if shape == "{s}://{h}:{p}" and scheme in ("tcp", "tls", "ws") and host in (
+            "10.0.0.5", "node-1") and port == "8786":
+        host = "my cluster"
+    return shape.format(s=scheme, h=host, p=port)
+
+
+def _malformed_corpus() -> list[str]:
+    rng = random.Random(1)
+    extra = ["", "local:0", "local:-1", "local:x", f"local:{10**6}", "LOCAL:", "local: 2",
+             "my cluster", "bogus://x", "tcp://host:8786 extra"]
+    return extra + [_malformed(rng) for _ in range(CASES)]
+
+
+@pytest.mark.parametrize("address", _malformed_corpus())
+def test_a_scheduler_address_of_another_form_is_refused_at_once(address):
+    line = refused(["evaluate", "simple", "--layout", "initial", "--scheduler", address],
+                   "--scheduler", within=2.0)
+    assert "expected" in line or "needs" in line
+
+
+def test_a_malformed_rgmcad_scheduler_is_refused_naming_the_variable(monkeypatch):
+    monkeypatch.setenv("RGMCAD_SCHEDULER", "my cluster")
+    refused(["evaluate", "simple", "--layout", "initial"], "RGMCAD_SCHEDULER", within=2.0)
+
+
+def _well_formed_nobody_home(rng: random.Random) -> str:
+    port = _closed_port()
+    host = rng.choice(["127.0.0.1", "localhost", "LOCALHOST", "127.0.0.1."])
+    return rng.choice(["tcp://{h}:{p}", "TCP://{h}:{p}", "{h}:{p}", "ws://{h}:{p}"]).format(
+        h=host, p=port)
+
+
+def test_a_scheduler_address_where_nothing_listens_is_one_line_at_once():
+    from rgmcad.errors import RgmcadError
+    from rgmcad.runs.executor import make_executor, scheduler_from_env
+
+    rng = random.Random(2)
+    for _ in range(CASES):
+        address = _well_formed_nobody_home(rng)
+        start = time.perf_counter()
+        with pytest.raises(RgmcadError) as caught:
+            make_executor(1, scheduler=scheduler_from_env(address))
+        assert time.perf_counter() - start < 2.0, address
+        message = str(caught.value)
+        assert message.startswith("--scheduler: ") and "no Dask scheduler answers there" in message
+        assert "\n" not in message
+
+
+class _Server:
+    """A TCP server on 127.0.0.1 that answers each connection with ``reply(rng)`` (None:
+    never answers, keeps the connection open) and closes it."""
+
+    def __init__(self, reply, seed: int = 0):
+        self.reply, self.rng = reply, random.Random(seed)
+        self.sock = socket.socket()
+        self.sock.bind(("127.0.0.1", 0))
+        self.sock.listen(16)
+        self.address = f"tcp://127.0.0.1:{self.sock.getsockname()[1]}"
+        self.held: list[socket.socket] = []
+        threading.Thread(target=self._serve, daemon=True).start()
+
+    def _serve(self):
+        while True:
+            try:
+                conn, _ = self.sock.accept()
+            except OSError:
+                return
+            data = self.reply(self.rng)
+            if data is None:
+                self.held.append(conn)
+                continue
+            try:
+                conn.sendall(data)
+            except OSError:
+                pass
+            conn.close()
+
+    def close(self):
+        self.sock.close()
+        for conn in self.held:
+            conn.close()
+
+
+def _garbage(rng: random.Random) -> bytes:
+    kind = rng.choice(["random", "http", "huge", "empty", "frames"])
+    if kind == "http":
+        return b"HTTP/1.1 400 Bad Request\r\nContent-Length: 0\r\n\r\n"
+    if kind == "huge":
+        return (2**62).to_bytes(8, "little") + rng.randbytes(rng.randrange(1, 64))
+    if kind == "empty":
+        return b""
+    if kind == "frames":
+        return (1).to_bytes(8, "little") + (8).to_bytes(8, "little") + rng.randbytes(8)
+    return rng.randbytes(rng.randrange(1, 512))
+
+
+def test_something_that_is_no_scheduler_is_one_line_at_once():
+    from rgmcad.errors import RgmcadError
+    from rgmcad.runs.dask_executor import DaskExecutor
+
+    server = _Server(_garbage, seed=3)
+    try:
+        for _ in range(CASES):
+            start = time.perf_counter()
+            with pytest.raises(RgmcadError) as caught:
+                DaskExecutor(server.address)
+            assert time.perf_counter() - start < 4.0
+            assert str(caught.value).startswith(f"--scheduler: {server.address}: ")
+            assert "\n" not in str(caught.value)
+    finally:
+        server.close()
+
+
+def test_a_host_that_never_answers_is_one_line_within_seconds(tmp_path):
+    server = _Server(lambda rng: None)  # connects, then silence: as a firewall that drops
+    try:
+        line = refused(["evaluate", "simple", "--layout", "initial", "--out",
+                        str(tmp_path / "hand.png"), "--scheduler", server.address],
+                       "--scheduler", server.address, "within 3 s", within=5.0)
+    finally:
+        server.close()
+    assert "no Dask scheduler answers there" in line
+
+
+def test_the_schemes_checked_are_those_of_dask():
+    from distributed.comm.registry import backends
+
+    from rgmcad.runs.executor import SCHEDULER_SCHEMES
+
+    assert set(backends) == set(SCHEDULER_SCHEMES)
