@@ -189,3 +189,109 @@ def test_the_schemes_checked_are_those_of_dask():
     from rgmcad.runs.executor import SCHEDULER_SCHEMES
 
     assert set(backends) == set(SCHEDULER_SCHEMES)
+
+
+# --- 2. verify-print on degenerate images --------------------------------------------------------
+
+
+def _image_bytes(rng: random.Random, folder) -> tuple[str, bytes]:
+    """(file name, content) of an image of a random degenerate shape, depth, channels and
+    content, or the bytes of a good one damaged."""
+    import io
+
+    import numpy as np
+    from PIL import Image
+
+    gen = np.random.default_rng(rng.randrange(2**32))
+    h, w = (rng.choice([1, 2, 31, 32, 33, 64, 120, 400, 2500]) for _ in range(2))
+    if h * w > 300_000:
+        h = 32
+    kind = rng.choice(["L", "L16", "I", "F", "LA", "RGB", "RGBA", "1", "CMYK"])
+    fill = rng.choice(["zeros", "max", "noise", "checker"])
+    top = {"L16": 65535, "I": 2**31 - 1, "F": 1e30, "1": 1}.get(kind, 255)
+    shape = (h, w, {"LA": 2, "RGB": 3, "RGBA": 4, "CMYK": 4}.get(kind, 1))
+    if fill == "zeros":
+        a = np.zeros(shape)
+    elif fill == "max":
+        a = np.full(shape, float(top))
+    elif fill == "noise":
+        a = gen.uniform(-top if kind in ("I", "F") else 0, top, shape)
+    else:
+        a = ((np.indices(shape[:2]).sum(0) // 4) % 2 * top)[..., None].repeat(shape[2], 2)
+    a = a[..., 0] if shape[2] == 1 else a
+    dtype = {"L16": np.uint16, "I": np.int32, "F": np.float32}.get(kind, np.uint8)
+    mode = {"L16": "I;16", "1": "L"}.get(kind, kind)
+    im = Image.fromarray(a.astype(dtype), mode=None if kind in ("I", "F", "L16") else mode)
+    if kind == "1":
+        im = im.convert("1")
+    fmt = "TIFF" if kind in ("I", "F", "CMYK") else rng.choice(["PNG", "PNG", "TIFF"])
+    buf = io.BytesIO()
+    im.save(buf, format=fmt)
+    data = buf.getvalue()
+    damage = rng.choice(["none"] * 5 + ["truncate", "flip", "zero", "text"])
+    if damage == "truncate":
+        data = data[:rng.randrange(0, len(data))]
+    elif damage == "flip":
+        b = bytearray(data)
+        for _ in range(rng.randrange(1, 20)):
+            b[rng.randrange(len(b))] = rng.randrange(256)
+        data = bytes(b)
+    elif damage == "zero":
+        data = b""
+    elif damage == "text":
+        data = b"a text file named like an image\n"
+    name = f"{kind}-{h}x{w}-{fill}-{damage}.{'png' if fmt == 'PNG' else 'tif'}"
+    return name, data
+
+
+@pytest.mark.parametrize("seed", range(CASES))
+def test_verify_print_refuses_a_degenerate_image_in_one_line(seed, tmp_path):
+    name, data = _image_bytes(random.Random(seed), tmp_path)
+    image = tmp_path / name
+    image.write_bytes(data)
+    line = refused(["verify-print", str(image)], str(image))
+    assert any(w in line for w in ("too small", "cannot read", "no template marks",
+                                   "million pixels")), line
+
+
+@pytest.mark.parametrize("shape", [(1, 1), (1, 20000), (20000, 1), (31, 4000), (2, 2)])
+def test_an_image_too_thin_for_a_mark_says_so(shape, tmp_path):
+    import numpy as np
+    from PIL import Image
+
+    image = tmp_path / "thin.png"
+    Image.fromarray(np.full(shape, 255, np.uint8)).save(image)
+    line = refused(["verify-print", str(image)], str(image), f"{shape[1]} x {shape[0]} pixels",
+                   "too small to hold a template mark", "at least 32 pixels")
+    assert "cv2" not in line
+
+
+def test_detecting_marks_in_a_degenerate_array_finds_none():
+    import numpy as np
+
+    from rgmcad.printing.marks import detect_marks
+
+    for shape in [(0, 5), (1, 1), (1, 20000), (20000, 1), (33, 6000), (6000, 33)]:
+        assert detect_marks(np.zeros(shape, np.uint8)) == {}
+
+
+def test_a_mark_on_a_canvas_of_odd_shape_is_read_or_refused_in_one_line(tmp_path):
+    import cv2
+    import numpy as np
+    from PIL import Image
+
+    rng = random.Random(4)
+    dictionary = cv2.aruco.getPredefinedDictionary(cv2.aruco.DICT_APRILTAG_36h11)
+    for n in range(CASES):
+        h, w = rng.choice([32, 40, 64, 200]), rng.choice([33, 900, 3000, 12000])
+        h, w = (h, w) if rng.random() < 0.5 else (w, h)
+        canvas = np.full((h, w), rng.choice([255, 200, 0]), np.uint8)
+        side = max(10, int(min(h, w) * rng.uniform(0.3, 1.0)))
+        mark = cv2.aruco.generateImageMarker(dictionary, rng.choice([4, 5, 6, 7, 0]), side)
+        y, x = rng.randrange(0, h - side + 1), rng.randrange(0, w - side + 1)
+        canvas[y:y + side, x:x + side] = mark
+        image = tmp_path / f"mark-{n}.png"
+        Image.fromarray(canvas).save(image, dpi=(rng.choice([1, 72, 600, 100_000]),) * 2)
+        code, out, err = cli_output(["verify-print", str(image)])
+        assert "Traceback" not in err and len(err.strip().splitlines()) <= 1, err
+        assert code in (1, 2) and (code == 1 or str(image) in err), (code, out, err)

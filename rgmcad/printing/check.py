@@ -247,8 +247,19 @@ def verify_print(image_path) -> PrintCheck:
     PrintCheckError
         The image cannot be read, or has no template marks.
     """
+    import cv2
+
     path = Path(image_path)
     grey, dpi = load_image(path)
+    try:
+        return _check(path, grey, dpi)
+    except (cv2.error, np.linalg.LinAlgError) as exc:  # an image no guard foresaw: one line
+        why = " ".join(str(exc).split())[:200]
+        raise PrintCheckError(path, "", f"cannot analyse the image ({type(exc).__name__}: "
+                              f"{why}); scan or photograph the whole sheet") from None
+
+
+def _check(path: Path, grey: np.ndarray, dpi: float | None) -> PrintCheck:
     marks = detect_marks(grey)
     if not marks:
         raise PrintCheckError(path, "", "no template marks (AprilTag 36h11) found: scan or "
