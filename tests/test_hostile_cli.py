@@ -295,3 +295,61 @@ def test_a_mark_on_a_canvas_of_odd_shape_is_read_or_refused_in_one_line(tmp_path
         code, out, err = cli_output(["verify-print", str(image)])
         assert "Traceback" not in err and len(err.strip().splitlines()) <= 1, err
         assert code in (1, 2) and (code == 1 or str(image) in err), (code, out, err)
+
+
+# --- 3. --parts DIR with a file that cannot be imported ------------------------------------------
+
+_SYNTAX = ["def (:", "x = = 1", "))", "class", "return 5", '"""never closed', "if True:\nx = 1",
+           "  indented = 1", "lambda: (yield)", "f'{'", "import", "x = [1, 2", "\x00",
+           "def f():\n\treturn 1\n        return 2", "from __future__ import braces"]
+_RAISES = ["1 / 0", "raise KeyError('k')", "raise SystemExit(3)", "raise SystemExit('bye')",
+           "import no_such_module_here", "assert False, 'no'", "exit()",
+           "raise type('Boom', (BaseException,), {})()", "def f(): return f()\nf()",
+           "open('/no/such/file')", "int('x')", "[][1]", "raise GeneratorExit",
+           "import sys; sys.exit(0)", "raise RuntimeError('line\\nbreak')"]
+
+
+def _top_level_lines(text: str) -> list[int]:
+    """0-based lines before which a statement can go: each top-level def or class, not
+    split from its decorator, and the end."""
+    lines = text.splitlines()
+    spots = [i for i, line in enumerate(lines)
+             if (line.startswith(("def ", "class ", "@", "FAMILY")) and
+                 not (i and lines[i - 1].startswith("@")))]
+    return spots + [len(lines)]
+
+
+def _hostile_part_files(seed: int, tmp_path):
+    """(folder, file, line or None, kind) of a copy of the shipped parts with one file
+    damaged: a syntax error or a statement that raises, at a top-level spot."""
+    import shutil
+
+    from rgmcad.parts.family import DEFAULT_PARTS_DIR
+
+    rng = random.Random(seed)
+    folder = tmp_path / f"parts-{seed}"
+    shutil.copytree(DEFAULT_PARTS_DIR, folder, ignore=shutil.ignore_patterns("__pycache__"))
+    victim = rng.choice(sorted(p for p in folder.glob("*.py") if not p.name.startswith("_")))
+    text = victim.read_text()
+    kind = "syntax" if seed % 2 else "raises"
+    insert = rng.choice(_SYNTAX if kind == "syntax" else _RAISES)
+    at = rng.choice(_top_level_lines(text))
+    lines = text.splitlines()
+    victim.write_text("\n".join([*lines[:at], insert, *lines[at:]]) + "\n")
+    return folder, victim, at + 1, kind
+
+
+@pytest.mark.parametrize("seed", range(2 * CASES))
+def test_a_part_file_that_cannot_be_imported_is_one_line_naming_it(seed, tmp_path):
+    folder, victim, line, kind = _hostile_part_files(seed, tmp_path)
+    said = refused(["check", "simple", "--parts", str(folder)], str(victim))
+    assert "importing this part family file failed" in said
+    if kind == "raises":  # the line of the statement that raised (a syntax error may be later)
+        assert f"{victim}:{line}:" in said, said
+
+
+def test_a_part_file_that_raises_keyboardinterrupt_is_an_interruption(tmp_path):
+    folder, victim, _, _ = _hostile_part_files(0, tmp_path)
+    victim.write_text("raise KeyboardInterrupt\n")
+    code, _, err = cli_output(["check", "simple", "--parts", str(folder)])
+    assert code == 130 and err.strip() == "rgmcad: interrupted"

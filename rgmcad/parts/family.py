@@ -247,17 +247,39 @@ def _import_family(path: Path) -> Family:
         sys.modules[module_name] = module  # dataclasses need the module registered
         try:
             spec.loader.exec_module(module)
-        except BaseException:
+        except BaseException as exc:  # the file's own code: its fault, in one line
             del sys.modules[module_name]
-            raise
+            if isinstance(exc, KeyboardInterrupt):  # Ctrl-C: the user's, not the file's
+                raise
+            raise _import_error(path, exc) from None
         family = getattr(module, "FAMILY", None)
         if isinstance(family, Family):
-            module.FAMILY = dataclasses.replace(family, source=path,
-                                                source_digest=_digest(path.read_text()))
+            module.FAMILY = dataclasses.replace(family, source=path, source_digest=_digest(
+                path.read_text(encoding="utf-8", errors="surrogateescape")))
     family = getattr(module, "FAMILY", None)
     if not isinstance(family, Family):
         raise ScenarioError(str(path), "FAMILY", "a part file must define FAMILY = Family(...)")
+    if not (isinstance(family.params, type) and dataclasses.is_dataclass(family.params)):
+        raise ScenarioError(str(path), "FAMILY.params", "expected a dataclass of the part's "
+                            f"parameters, got {_REPR.repr(family.params)}")
     return family
+
+
+def _import_error(path: Path, exc: BaseException) -> ScenarioError:
+    """One line for a part file that cannot be imported: its file and line (the line of
+    that file where the error arose, or the import in it that led there) and the error."""
+    import traceback
+
+    if isinstance(exc, SyntaxError) and exc.filename and exc.lineno:
+        where, what = f"{exc.filename}:{exc.lineno}", f"syntax error: {exc.msg}"
+    else:
+        lines = [f.lineno for f in traceback.extract_tb(exc.__traceback__)
+                 if Path(f.filename) == path and f.lineno]
+        where = f"{path}:{lines[-1]}" if lines else str(path)
+        what = (f"it exits Python: SystemExit({exc.code!r})" if isinstance(exc, SystemExit)
+                else ": ".join(filter(None, [type(exc).__name__, " ".join(str(exc).split())[:200]])))
+    return ScenarioError(where, "", f"importing this part family file failed ({what}); a "
+                         "part file must run without error and define FAMILY = Family(...)")
 
 
 def family_digest(family: Family) -> str:
@@ -269,4 +291,4 @@ def family_digest(family: Family) -> str:
 
 
 def _digest(text: str) -> str:
-    return hashlib.sha256(text.encode()).hexdigest()
+    return hashlib.sha256(text.encode("utf-8", "surrogateescape")).hexdigest()
