@@ -353,3 +353,140 @@ def test_a_part_file_that_raises_keyboardinterrupt_is_an_interruption(tmp_path):
     victim.write_text("raise KeyboardInterrupt\n")
     code, _, err = cli_output(["check", "simple", "--parts", str(folder)])
     assert code == 130 and err.strip() == "rgmcad: interrupted"
+
+
+# --- 4. a damaged part cache -----------------------------------------------------------------------
+
+
+def _simple_cache(folder):
+    """A part cache of the parts of ``simple`` (copied from the tests' own); the id of its
+    ball (a part with a mesh)."""
+    import shutil
+
+    from rgmcad.cli.paths import default_build_dir
+    from rgmcad.parts.store import part_id
+    from rgmcad.scene.bodies import load_parts
+    from rgmcad.scene.loader import load_scenario
+    from rgmcad.shipped import scenario_path
+
+    scenario = load_scenario(scenario_path("simple"))
+    load_parts(scenario, default_build_dir())  # built there once, if not yet
+    ids = {o.name: part_id(scenario.family(o), o.params) for o in scenario.body_objects()}
+    for pid in set(ids.values()):
+        shutil.copytree(default_build_dir() / pid, folder / pid)
+    return ids["ball"]
+
+
+class _Payload:
+    """A pickle that leaves a file behind if it is ever unpickled."""
+
+    def __init__(self, marker):
+        self.marker = str(marker)
+
+    def __reduce__(self):
+        return (open, (self.marker, "w"))
+
+
+def _damage(rng: random.Random, folder, marker) -> str:
+    """Damage the part in ``folder`` one random way; the name of the file damaged."""
+    import io
+    import json
+
+    import numpy as np
+
+    mesh, record = folder / "mesh.npz", folder / "part.json"
+    arrays = dict(np.load(mesh))
+    kind = rng.choice(["zero", "random", "truncate", "flip", "pickle", "shape", "dtype",
+                       "range", "nan", "missing", "npy", "json", "json-type", "json-id",
+                       "json-files", "json-key"])
+    if kind == "zero":
+        mesh.write_bytes(b"")
+    elif kind == "random":
+        mesh.write_bytes(rng.randbytes(rng.randrange(1, 4096)))
+    elif kind == "truncate":
+        data = mesh.read_bytes()
+        mesh.write_bytes(data[:rng.randrange(len(data))])
+    elif kind == "flip":
+        data = bytearray(mesh.read_bytes())
+        for _ in range(rng.randrange(1, 8)):
+            data[rng.randrange(len(data))] ^= 1 << rng.randrange(8)
+        mesh.write_bytes(bytes(data))
+    elif kind == "npy":
+        buf = io.BytesIO()
+        np.save(buf, arrays["vertices_"])
+        mesh.write_bytes(buf.getvalue())
+    else:
+        if kind == "pickle":
+            arrays["vertices_"] = np.array([_Payload(marker)] * 3, dtype=object)
+        elif kind == "shape":
+            arrays["vertices_"] = arrays["vertices_"][:, :2]
+        elif kind == "dtype":
+            arrays["faces_"] = arrays["faces_"].astype(float)
+        elif kind == "range":
+            arrays["faces_"] = arrays["faces_"] + len(arrays["vertices_"])
+        elif kind == "nan":
+            arrays["vertices_"] = arrays["vertices_"] * np.nan
+        elif kind == "missing":
+            del arrays["faces_"]
+        if not kind.startswith("json"):
+            np.savez(mesh, **arrays, allow_pickle=True) if kind == "pickle" else np.savez(mesh, **arrays)
+            return "mesh.npz"
+        data = json.loads(record.read_text())
+        if kind == "json":
+            record.write_text(record.read_text()[:rng.randrange(1, 200)])
+        elif kind == "json-type":
+            record.write_text(json.dumps([data]))
+        elif kind == "json-id":
+            data["id"] = "ball-000000000000"
+            record.write_text(json.dumps(data))
+        elif kind == "json-files":
+            data["files"]["step"] = "../../../etc/passwd"
+            record.write_text(json.dumps(data))
+        else:
+            del data[rng.choice(["bodies", "joints", "files", "infinite"])]
+            record.write_text(json.dumps(data))
+        return "part.json"
+    return "mesh.npz"
+
+
+def test_a_damaged_part_is_refused_naming_its_file_never_unpickled(tmp_path):
+    import shutil
+
+    import numpy as np
+
+    from rgmcad.parts.store import DamagedPart, PartStore
+
+    cache = tmp_path / "cache"
+    pid = _simple_cache(cache)
+    good = PartStore(cache).load(pid)
+    marker = tmp_path / "unpickled"
+    rng = random.Random(5)
+    for n in range(CASES):
+        folder = tmp_path / f"case-{n}" / pid
+        shutil.copytree(cache / pid, folder)
+        damaged = _damage(rng, folder, marker)
+        try:
+            part = PartStore(folder.parent).load(pid)
+        except DamagedPart as exc:
+            assert str(exc).startswith(f"{folder / damaged}: ") and "\n" not in str(exc)
+        else:  # the damage missed what is read: the part as it was built
+            assert np.array_equal(part.main.vertices, good.main.vertices)
+            assert np.array_equal(part.main.faces, good.main.faces)
+        assert not marker.exists()
+
+
+def test_a_damaged_part_cache_is_built_again_and_the_run_is_the_same(tmp_path, caplog):
+    import json
+
+    cache = tmp_path / "cache"
+    pid = _simple_cache(cache)
+    code, before, _ = cli_output(["simulate", "simple", "--build-dir", str(cache), "--json"])
+    assert code == 0
+    (cache / pid / "mesh.npz").write_bytes(b"PK\x03\x04 not a zip any more")
+    code, after, err = cli_output(["simulate", "simple", "--build-dir", str(cache), "--json"])
+    assert code == 0 and "Traceback" not in err, err
+    warned = [r.getMessage() for r in caplog.records if r.levelname == "WARNING"]
+    assert len(warned) == 1 and warned[0].startswith(
+        f"{cache / pid / 'mesh.npz'}: a damaged part cache entry"), warned
+    before, after = json.loads(before), json.loads(after)
+    assert {**before, "wall_time": 0} == {**after, "wall_time": 0}

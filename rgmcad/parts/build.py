@@ -38,6 +38,7 @@ from rgmcad.parts.store import (
     FILES,
     UNITS,
     BuiltPart,
+    DamagedPart,
     PartStore,
     as_params,
     as_store,
@@ -154,6 +155,10 @@ def load_part(family: Family, params, out_dir: Store = DEFAULT_BUILD_DIR, *,
 
     Reading from disk uses json and numpy only (CadQuery is imported only to build).
 
+    A part whose files cannot be read back (:class:`~rgmcad.parts.store.DamagedPart`: cut
+    short, edited) counts as missing: built again over it, or raised if ``build_missing``
+    is false.
+
     Raises
     ------
     FileNotFoundError
@@ -163,7 +168,18 @@ def load_part(family: Family, params, out_dir: Store = DEFAULT_BUILD_DIR, *,
     pid = part_id(family, params)
     store = as_store(out_dir)
     if store.has(pid):
-        return store.load(pid)
+        try:
+            return store.load(pid)
+        except DamagedPart as exc:  # as if missing: built again, over the damaged one
+            if not build_missing:
+                raise
+            log.warning("%s; building the part again", exc)
+            try:
+                return build_part(family, params, store, replace=True)
+            except OSError as err:  # a read-only cache
+                raise DamagedPart(exc.where, "", f"{exc.message}, and it cannot be built again "
+                                  f"there ({err.strerror}); delete {store.directory / pid} or "
+                                  "give another --build-dir") from None
     if build_missing:
         return build_part(family, params, store, replace=False)
     raise FileNotFoundError(f"part {pid} ({family.name} {canonical_params(params)}) is not "
@@ -204,9 +220,13 @@ def build_parts(instances: Iterable[tuple[Family, object]], out_dir: Store = DEF
     parts = []
     for done, (pid, (family, params)) in enumerate(unique.items(), start=1):
         cached = not force and store.has(pid)
-        if cached:
-            part = load_part(family, params, store, build_missing=False)
-        else:
+        try:
+            part = load_part(family, params, store, build_missing=False) if cached else None
+        except DamagedPart as exc:
+            log.warning("%s; building the part again", exc)
+            cached = False
+            part = build_part(family, params, store, replace=True)
+        if part is None:
             part = build_part(family, params, store, replace=force)
         parts.append(part)
         if progress is not None:

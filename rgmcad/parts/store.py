@@ -19,6 +19,7 @@ from __future__ import annotations
 import contextlib
 import hashlib
 import json
+import math
 import os
 import shutil
 import tempfile
@@ -29,7 +30,7 @@ from pathlib import Path
 
 import numpy as np
 
-from rgmcad.errors import ScenarioError
+from rgmcad.errors import PartBuildError, ScenarioError
 from rgmcad.files import write_json_atomic
 from rgmcad.parts.family import MAIN, Family, Hinge, family_digest, params_dict
 from rgmcad.parts.pieces import Piece, piece_from_dict
@@ -210,7 +211,7 @@ class PartStore:
 
     def load(self, pid: str) -> BuiltPart:
         """The part this store loaded before, else read from disk (FileNotFoundError if not
-        built)."""
+        built, :class:`DamagedPart` if its files cannot be read back)."""
         part = self._loaded.get(pid)
         if part is None:
             part = self._loaded[pid] = _read_part(self.directory / pid)
@@ -293,34 +294,76 @@ def _frozen(array) -> np.ndarray:
     return array
 
 
+class DamagedPart(PartBuildError):
+    """A built part whose files cannot be read back (cut short, edited, another program's):
+    :func:`~rgmcad.parts.build.load_part` builds it again."""
+
+
 def _read_part(folder: Path) -> BuiltPart:
-    record = json.loads((folder / "part.json").read_text())
-    bodies: dict[str, BuiltBody] = {}
-    if record["bodies"]:
-        with np.load(folder / "mesh.npz", allow_pickle=False) as arrays:
-            for key, body in record["bodies"].items():
-                bodies[key] = BuiltBody(
-                    key=key,
-                    vertices=_frozen(arrays[f"vertices_{key}"]),
-                    faces=_frozen(arrays[f"faces_{key}"]),
-                    volume=float(body["volume"]),
-                    centre_of_mass=_frozen(np.array(body["centre_of_mass"], float)),
-                    inertia_unit=_frozen(np.array(body["inertia_unit"], float)),
-                    bbox=_frozen(np.array(body["bbox"], float)),
-                    pieces=tuple(piece_from_dict(p) for p in body["pieces"]),
-                    fixed=bool(body["fixed"]),
-                )
-    joints = tuple(Hinge(j["moving"], j["fixed"], tuple(j["point"]), tuple(j["axis"]))
-                   for j in record["joints"])
-    return BuiltPart(
-        id=record["id"],
-        family=record["family"],
-        params=record["params"],
-        bodies=bodies,
-        joints=joints,
-        infinite=bool(record["infinite"]),
-        files={kind: folder / name for kind, name in record["files"].items()},
-    )
+    """The part built in ``folder``: FileNotFoundError if its ``part.json`` is not there
+    (not built, or being replaced), :class:`DamagedPart` naming the file if a file cannot
+    be read back as a part. ``mesh.npz`` is read without pickles: an object array in it is
+    damage, never code run."""
+    name = "part.json"
+    try:
+        record = json.loads((folder / name).read_text(encoding="utf-8"))
+        bodies: dict[str, BuiltBody] = {}
+        if record["bodies"]:
+            name = "mesh.npz"
+            with np.load(folder / name, allow_pickle=False) as arrays:
+                for key, body in record["bodies"].items():
+                    bodies[key] = BuiltBody(
+                        key=key,
+                        vertices=_frozen(_mesh(arrays[f"vertices_{key}"], np.floating)),
+                        faces=_frozen(_mesh(arrays[f"faces_{key}"], np.integer)),
+                        volume=float(body["volume"]),
+                        centre_of_mass=_frozen(np.array(body["centre_of_mass"], float)),
+                        inertia_unit=_frozen(np.array(body["inertia_unit"], float)),
+                        bbox=_frozen(np.array(body["bbox"], float)),
+                        pieces=tuple(piece_from_dict(p) for p in body["pieces"]),
+                        fixed=bool(body["fixed"]),
+                    )
+                    _check_body(bodies[key])
+            name = "part.json"
+        joints = tuple(Hinge(j["moving"], j["fixed"], tuple(j["point"]), tuple(j["axis"]))
+                       for j in record["joints"])
+        files = {kind: folder / _plain_name(file) for kind, file in record["files"].items()}
+        if record["id"] != folder.name:
+            raise ValueError(f"id {record['id']!r} is not its folder's")
+        return BuiltPart(id=str(record["id"]), family=str(record["family"]),
+                         params=dict(record["params"]), bodies=bodies, joints=joints,
+                         infinite=bool(record["infinite"]), files=files)
+    except FileNotFoundError as exc:
+        if name == "part.json":
+            raise
+        raise DamagedPart(folder / name, "", f"missing ({exc.strerror})") from None
+    except Exception as exc:  # noqa: BLE001 - damage shows as any error of json or numpy
+        why = " ".join(f"{type(exc).__name__}: {exc}".split())[:200]
+        raise DamagedPart(folder / name, "", f"a damaged part cache entry ({why})") from None
+
+
+def _mesh(array: np.ndarray, kind: type) -> np.ndarray:
+    """``array`` if it is (n, 3) numbers of ``kind`` (float or integer)."""
+    if array.ndim != 2 or array.shape[1] != 3 or not np.issubdtype(array.dtype, kind):
+        raise ValueError(f"expected (n, 3) {kind.__name__} values, got {array.dtype} "
+                         f"{array.shape}")
+    return array
+
+
+def _check_body(body: BuiltBody) -> None:
+    n = len(body.vertices)
+    if not (len(body.faces) and n >= 3 and np.isfinite(body.vertices).all()
+            and body.faces.min() >= 0 and body.faces.max() < n):
+        raise ValueError(f"body {body.key!r}: not a mesh ({n} vertices, {len(body.faces)} faces)")
+    if not (math.isfinite(body.volume) and body.volume > 0 and body.bbox.shape == (2, 3)
+            and body.centre_of_mass.shape == (3,) and body.inertia_unit.shape == (3, 3)):
+        raise ValueError(f"body {body.key!r}: not its mass properties")
+
+
+def _plain_name(name) -> str:
+    if not (isinstance(name, str) and name and Path(name).name == name and name not in (".", "..")):
+        raise ValueError(f"files: expected a file name, got {name!r}")
+    return name
 
 
 # --- manifest ---------------------------------------------------------------------------------
