@@ -21,3 +21,11 @@ def on_files(files, config):
     for path, text in json.loads(done.stdout).items():
         files.append(File.generated(config, path, content=text))
     return files
+
+
+def on_page_markdown(markdown, page, config, files):
+    from pathlib import Path
+
+    from rgmcad.reference.results import fill
+
+    return fill(markdown, Path(config["config_file_path"]).parent)

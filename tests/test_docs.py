@@ -189,3 +189,23 @@ def test_a_real_run_directory_holds_only_files_the_page_names(tmp_path):
     held = sorted(p.relative_to(run).as_posix() for p in run.rglob("*") if p.is_file())
     page = runs_page.page()
     assert held and not [name for name in held if f"`{name}`" not in page]
+
+
+def test_a_results_table_is_made_from_its_json_and_a_page_cannot_lose_one(tmp_path):
+    # the built-by-hand page carries a marker, not a copy: the table follows the file
+    import json as _json
+
+    from rgmcad.reference.results import fill, hand_table
+
+    page = (ROOT / "docs" / "results" / "hand.md").read_text()
+    assert "<!-- table: docs/hand-acceptance.json -->" in page
+    results = _json.loads((ROOT / "docs" / "hand-acceptance.json").read_text())
+    filled = fill(page, ROOT)
+    assert hand_table(results) in filled and "<!-- table:" not in filled
+    first = next(iter(results.values()))
+    first["optimum"]["rate"], first["optimum"]["interval"] = 0.5, [0.4, 0.6]
+    (tmp_path / "docs").mkdir()
+    (tmp_path / "docs" / "hand-acceptance.json").write_text(_json.dumps(results))
+    assert "50 % [40, 60]" in fill(page, tmp_path)  # a new measurement, a new table
+    with pytest.raises(ValueError, match="no table is made from docs/other.json"):
+        fill("<!-- table: docs/other.json -->", ROOT)

@@ -20,6 +20,7 @@ import sys
 import time
 from pathlib import Path
 
+from rgmcad.reference.results import hand_table
 from rgmcad.runs.executor import make_executor
 from rgmcad.runs.hand import DEFAULT_HAND, HAND_SETTINGS, Builds, measure_rate
 from rgmcad.runs.hand_text import hand_headline
@@ -70,7 +71,7 @@ def doubled(path: Path, parameter: str, folder: Path) -> Path:
 
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("scenarios", nargs="+")
+    ap.add_argument("scenarios", nargs="*")
     ap.add_argument("--budget", default="default")
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--workers", type=int, default=2)
@@ -82,7 +83,7 @@ def main() -> int:
     out = Path(args.out)
     results = json.loads(out.read_text()) if out.is_file() else {}
     if args.table:
-        print(table(results))
+        print(hand_table(results))
         return 0
     for given in args.scenarios:
         path = Path(given)
@@ -120,23 +121,6 @@ def main() -> int:
               + (f"; {ref['layout']} {ref['rate']:.3f} {ref['interval']}" if ref else "")
               + f" ({entry['optimize_seconds']:.0f} s)", flush=True)
     return 0
-
-
-def _pct(r: dict) -> str:
-    low, high = r["interval"]
-    return f"{round(100 * r['rate'])} % [{int(100 * low)}, {-int(-100 * high)}]"
-
-
-def table(results: dict) -> str:
-    rows = ["| scenario | seed | optimised: works when built by hand | reference layout | "
-            "optimize (s) |", "|---|---|---|---|---|"]
-    for entry in results.values():
-        ref = entry.get("reference")
-        rows.append(f"| {Path(entry['scenario']).stem} | {entry['seed']} | "
-                    f"{_pct(entry['optimum'])} | "
-                    + (f"`{ref['layout']}` {_pct(ref)}" if ref else "-")
-                    + f" | {entry['optimize_seconds']:.0f} |")
-    return "\n".join(rows)
 
 
 def problem_layouts(path: str) -> dict:
