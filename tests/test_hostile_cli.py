@@ -4,10 +4,12 @@ with a few hand-picked cases and a generated corpus (fixed seeds; counts in ``CA
 
 from __future__ import annotations
 
+import errno
 import random
 import socket
 import threading
 import time
+from pathlib import Path
 
 import pytest
 
@@ -490,3 +492,123 @@ def test_a_damaged_part_cache_is_built_again_and_the_run_is_the_same(tmp_path, c
         f"{cache / pid / 'mesh.npz'}: a damaged part cache entry"), warned
     before, after = json.loads(before), json.loads(after)
     assert {**before, "wall_time": 0} == {**after, "wall_time": 0}
+
+
+# --- 5. a full disk -------------------------------------------------------------------------------
+
+
+class _SmallDisk:
+    """A folder on a disk of ``kib`` KiB: a real tmpfs where this process may mount one (as
+    root in a container), else a simulated one (:func:`rgmcad.files.write_all`, through
+    which rgmcad's journal and atomic writes go, fails with ENOSPC once ``kib`` KiB went
+    to files in the folder; or when ``RGMCAD_TEST_SIMULATED_DISK`` is set). :meth:`grow`
+    makes room, :meth:`close` unmounts."""
+
+    def __init__(self, folder, kib: int, monkeypatch):
+        import os
+        import shutil
+        import subprocess
+
+        self.folder = folder
+        folder.mkdir(parents=True)
+        self.real = (os.geteuid() == 0 and shutil.which("mount") is not None
+                     and not os.environ.get("RGMCAD_TEST_SIMULATED_DISK") and subprocess.run(
+            ["mount", "-t", "tmpfs", "-o", f"size={kib}k,mode=755", "tmpfs", str(folder)],
+            capture_output=True).returncode == 0)
+        if not self.real:
+            import rgmcad.files
+
+            self.left, real_write = kib * 1024, rgmcad.files.write_all
+
+            def write_all(fd, data):
+                try:
+                    inside = folder in Path(os.readlink(f"/proc/self/fd/{fd}")).parents
+                except OSError:
+                    inside = True
+                if inside and self.left is not None and len(data) > self.left:
+                    real_write(fd, bytes(data)[:self.left])
+                    self.left = 0
+                    raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+                if inside and self.left is not None:
+                    self.left -= len(data)
+                real_write(fd, data)
+
+            monkeypatch.setattr(rgmcad.files, "write_all", write_all)
+
+    def grow(self):
+        import subprocess
+
+        if self.real:
+            subprocess.run(["mount", "-o", "remount,size=64m", str(self.folder)], check=True)
+        else:
+            self.left = None
+
+    def close(self):
+        import subprocess
+
+        if self.real:
+            subprocess.run(["umount", str(self.folder)], check=True)
+
+
+@pytest.fixture
+def small_disk(tmp_path, monkeypatch):
+    disks = []
+
+    def make(kib: int, name: str = "disk") -> _SmallDisk:
+        disks.append(_SmallDisk(tmp_path / name, kib, monkeypatch))
+        return disks[-1]
+
+    yield make
+    for disk in disks:
+        disk.close()
+
+
+def _record(rng: random.Random):
+    from rgmcad.runs.problem import SimRecord
+    from rgmcad.sim.run import Outcome
+
+    ok = rng.random() < 0.5
+    return SimRecord(True, Outcome.SUCCESS if ok else Outcome.FAILURE,
+                     {"a": (ok, rng.random()), "b": (None, None)}, rng.random())
+
+
+def test_a_full_disk_stops_the_journal_in_one_line_and_the_run_resumes(small_disk):
+    import json
+
+    from rgmcad.errors import RunDirectoryError
+    from rgmcad.runs.store import SIMULATIONS, RunStore, run_identity
+    from tests._support import TINY
+
+    identity = run_identity("s", "0" * 64, 0, TINY)
+    rng = random.Random(6)
+    for n in range(CASES):
+        disk = small_disk(rng.choice([16, 20, 24, 32, 40]), f"disk-{n}")
+        run = disk.folder / "run"
+        stored = []
+        with RunStore(run, identity, dimension=3, events=["a", "b"]) as store:
+            with pytest.raises(RunDirectoryError) as caught:
+                for _ in range(10_000):
+                    x, record = [rng.random() for _ in range(3)], _record(rng)
+                    store.append(x, record, sync=rng.random() < 0.3)
+                    stored.append((x, record))
+        message = str(caught.value)
+        assert message.startswith(f"{run / SIMULATIONS}: cannot be written (No space left on "
+                                  "device); free some space"), message
+        data = (run / SIMULATIONS).read_bytes()
+        assert data.endswith(b"\n") and len(data.splitlines()) == len(stored) > 0
+        assert all(json.loads(line) for line in data.splitlines())
+        disk.grow()
+        with RunStore(run, identity, dimension=3, events=["a", "b"]) as store:
+            assert store.n_lines == len(stored) and store.n_rejected == 0
+            assert all(store.lookup(x) == record for x, record in stored)
+            store.append([0.5] * 3, _record(rng))  # and it goes on
+
+
+def test_a_full_disk_under_an_output_file_is_one_line_and_no_torn_file(small_disk):
+    disk = small_disk(8)
+    page = disk.folder / "replay.html"
+    page.write_text("the old page\n")
+    refused(["simulate", "simple", "--html", str(page)], f"{page}: cannot be written (No space "
+            "left on device); free some space and run the same command again")
+    assert page.read_text() == "the old page\n"  # whole, or the old one
+    assert sorted(p.name for p in disk.folder.iterdir()) == ["replay.html"]  # no temporary left

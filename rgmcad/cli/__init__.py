@@ -96,12 +96,20 @@ def main(argv: list[str] | None = None) -> int:
     except RgmcadError as exc:
         print(f"rgmcad: error: {' '.join(str(exc).splitlines())}", file=sys.stderr)
         return 2
-    except KeyboardInterrupt:
-        print("rgmcad: interrupted", file=sys.stderr)
-        return 130
     except BrokenPipeError:  # whoever read stdout stopped (`rgmcad ... | head`): no traceback
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return 141
+    except OSError as exc:  # a full or read-only disk under an output (files named by rgmcad.files)
+        from rgmcad.files import STORAGE_ERRORS, cannot_write
+
+        if exc.errno not in STORAGE_ERRORS:
+            raise
+        print(f"rgmcad: error: {exc.filename or 'an output file'}: {cannot_write(exc)}",
+              file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print("rgmcad: interrupted", file=sys.stderr)
+        return 130
 
 
 if __name__ == "__main__":

@@ -26,7 +26,8 @@ label a new simulation would give. A ``kill -9`` loses at most the simulations i
 line cut short by the kill has no final newline and is dropped (and cut off the file) when the
 store is opened again. A power cut or system crash can lose the batch being simulated (what
 was written but not yet fsynced): one fsync per batch, because one per simulation cost too
-much (docs/decisions.md).
+much (docs/decisions.md). A full disk stops the run with one line naming the file; a line
+that did not fit is cut off again, so the same command resumes once there is room.
 
 What can be healed is healed, with one warning (logged) each: a line that is not a
 simulation record (garbage, a wrong type, a missing key, a vector of the wrong length) is
@@ -51,7 +52,7 @@ from typing import Any
 import numpy as np
 
 from rgmcad.errors import RunDirectoryError
-from rgmcad.files import write_atomic, write_json_atomic
+from rgmcad.files import STORAGE_ERRORS, append_whole, cannot_write, reason, write_atomic, write_json_atomic
 from rgmcad.runs.executor import map_blocks, parent_only
 from rgmcad.runs.lock import DirectoryLock, LockedError
 from rgmcad.runs.problem import SimRecord, simulate_layout_task, validity_task
@@ -129,7 +130,7 @@ class RunStore:
             parent_only(self._lock.fd)
             self._check_identity()
             self._load()
-            self._file = open(self.directory / SIMULATIONS, "ab")
+            self._file = open(self.directory / SIMULATIONS, "ab", buffering=0)  # noqa: SIM115
             parent_only(self._file.fileno())
         except LockedError as exc:
             raise RunDirectoryError(str(self.directory), "", str(exc)) from None
@@ -138,8 +139,10 @@ class RunStore:
             raise
         except (OSError, ValueError) as exc:  # ValueError: a path with a NUL byte
             self.close()
+            if isinstance(exc, OSError) and exc.errno in STORAGE_ERRORS and exc.filename:
+                raise RunDirectoryError(exc.filename, "", cannot_write(exc)) from None
             raise RunDirectoryError(repr(str(self.directory)), "", "cannot be used as a run "
-                                    f"directory ({_reason(exc)}); choose another --run") from None
+                                    f"directory ({reason(exc)}); choose another --run") from None
         except BaseException:
             self.close()
             raise
@@ -242,16 +245,21 @@ class RunStore:
         False, for a caller that calls :meth:`sync` after a batch."""
         x = np.asarray(x, dtype=float)
         row = {"i": self.n_lines, "vector": x.tolist(), **record.to_json()}
-        self._file.write((json.dumps(row) + "\n").encode())
-        self._file.flush()
-        if sync:
-            os.fsync(self._file.fileno())
+        try:  # whole lines or none: a full disk leaves the journal as it was
+            append_whole(self._file.fileno(), (json.dumps(row) + "\n").encode(), self._file.name)
+            if sync:
+                os.fsync(self._file.fileno())
+        except OSError as exc:
+            raise RunDirectoryError(self._file.name, "", cannot_write(exc)) from None
         self.records[_key(x)] = record
         self.n_lines += 1
 
     def sync(self) -> None:
         """fsync the simulations written so far."""
-        os.fsync(self._file.fileno())
+        try:
+            os.fsync(self._file.fileno())
+        except OSError as exc:
+            raise RunDirectoryError(self._file.name, "", cannot_write(exc)) from None
 
     # --- results -----------------------------------------------------------------------------
 
@@ -308,14 +316,6 @@ class RunStore:
 
     def __exit__(self, *exc):
         self.close()
-
-
-def _reason(exc: OSError | ValueError) -> str:
-    """What went wrong, without Python's decoration ("Permission denied: 'DIR/.lock'")."""
-    if not isinstance(exc, OSError):
-        return str(exc)
-    where = f": {exc.filename}" if exc.filename else ""
-    return f"{exc.strerror or exc}{where}"
 
 
 # a key only one side has; its repr is what the refusal says ("run has nothing")

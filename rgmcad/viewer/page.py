@@ -8,6 +8,7 @@ from html import escape
 from importlib import resources
 from pathlib import Path
 
+from rgmcad.files import write_atomic
 from rgmcad.viewer.recording import Replay, replay_payload
 
 __all__ = ["replay_section", "html_page", "write_replay_html"]
@@ -111,7 +112,7 @@ def write_replay_html(path: str | Path, replay: Replay) -> Path:
             f"{replay.times[-1]:.3f} s simulated; outcome {escape(replay.outcome)}.</p>\n"
             + replay_section(payload))
     path = Path(path)
-    path.write_text(html_page(replay.title, body, payload), encoding="utf-8")
+    write_atomic(path, html_page(replay.title, body, payload))  # whole, or the old page
     return path
 
 
@@ -133,5 +134,5 @@ def simulate_to_html(scenario, values, parts, path: str | Path, *, title: str | 
     title = title or scenario.name
     body = (f"<h1>{escape(title)}</h1><p>This layout is invalid: its parts overlap at the "
             f"start, so it was not simulated.</p><ul>{overlaps}</ul>")
-    Path(path).write_text(html_page(title, body, None), encoding="utf-8")
+    write_atomic(path, html_page(title, body, None))
     return result

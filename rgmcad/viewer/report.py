@@ -14,6 +14,7 @@ import shlex
 from html import escape
 from pathlib import Path
 
+from rgmcad.files import write_atomic
 from rgmcad.parts.store import DEFAULT_BUILD_DIR
 from rgmcad.runs.hand_text import hand_headline, weak_link_lines
 from rgmcad.runs.report import (
@@ -84,7 +85,7 @@ def write_run_report(run_dir: str | Path, scenario_path: str | Path, *,
             _events(summary, result), _placement(scenario, summary, low, high),
             _figures(run_dir), _template(run_dir, _scenario_argument(scenario_path), summary)]
     path = run_dir / REPORT_HTML
-    path.write_text(html_page(title, "\n".join(body), payload), encoding="utf-8")
+    write_atomic(path, html_page(title, "\n".join(body), payload))  # whole, or the old page
     return path
 
 
