@@ -45,7 +45,10 @@ def load_image(path: Path) -> tuple[np.ndarray, float | None]:
             grey = _grey(im)
     except _Refused as exc:
         raise PrintCheckError(path, "", str(exc)) from None
-    except Exception as exc:  # PIL's own size limit, or a decoder's error on a bad file
+    except Image.DecompressionBombError:  # PIL's own limit, at open: past twice its 89 million
+        raise PrintCheckError(path, "", f"too large: expected at most {MAX_PIXELS // 10**6} "
+                              "million pixels (A3 at 600 dpi)") from None
+    except Exception as exc:  # a decoder's error on a bad file
         raise PrintCheckError(path, "", f"cannot read the image ({type(exc).__name__}: "
                               f"{str(exc)[:200]}); expected a PNG, JPEG or TIFF scan or "
                               "photo") from None
@@ -63,7 +66,7 @@ def _check_size(width: int, height: int) -> None:
         raise _Refused(f"{size}: expected at most {MAX_PIXELS // 10**6} million pixels (A3 at "
                        "600 dpi)")
     if min(width, height) < MIN_SIDE:
-        raise _Refused(f"{size}: too small to hold a template mark; expected at least "
+        raise _Refused(f"{size}: too small, no template marks fit in it; expected at least "
                        f"{MIN_SIDE} pixels each way (a scan or photo of a whole sheet)")
 
 
