@@ -264,7 +264,7 @@ def test_an_image_too_thin_for_a_mark_says_so(shape, tmp_path):
     image = tmp_path / "thin.png"
     Image.fromarray(np.full(shape, 255, np.uint8)).save(image)
     line = refused(["verify-print", str(image)], str(image), f"{shape[1]} x {shape[0]} pixels",
-                   "too small to hold a template mark", "at least 32 pixels")
+                   "too small, no template marks fit in it", "at least 32 pixels")
     assert "cv2" not in line
 
 
@@ -612,3 +612,46 @@ def test_a_full_disk_under_an_output_file_is_one_line_and_no_torn_file(small_dis
             "left on device); free some space and run the same command again")
     assert page.read_text() == "the old page\n"  # whole, or the old one
     assert sorted(p.name for p in disk.folder.iterdir()) == ["replay.html"]  # no temporary left
+
+
+# --- 6. empty values -------------------------------------------------------------------------------
+
+_GIVEN = {"scenario": "simple", "image": "sheet.png", "scenarios": "simple", "--layout": "initial",
+          "--out": "out.png"}
+
+
+def _blank_value_cases() -> list[tuple[list[str], str]]:
+    """Every value-taking argument of every command (read from the parser), each given a
+    blank value drawn at random, the command's other required arguments given."""
+    from rgmcad.cli import build_parser
+
+    rng = random.Random(8)
+    cases = []
+    for name, sub in build_parser().commands.items():
+        takes = [a for a in sub._actions if a.nargs != 0 and a.dest != "help"]
+        for target in takes:
+            flag = target.option_strings[-1] if target.option_strings else target.dest
+            argv = name.split()
+            for a in takes:
+                key = a.option_strings[-1] if a.option_strings else a.dest
+                value = rng.choice(["", " ", "\t", "  \n "]) if a is target else _GIVEN.get(key)
+                if a is not target and not a.required:
+                    continue
+                argv += [key, value] if a.option_strings else [value]
+            cases.append((argv, flag))
+    return cases
+
+
+@pytest.mark.parametrize(("argv", "flag"), _blank_value_cases(),
+                         ids=lambda v: "-".join(v) if isinstance(v, list) else v)
+def test_an_empty_value_of_any_argument_is_refused_naming_it(argv, flag):
+    refused(argv, f"argument {flag}", within=2.0)
+
+
+def test_an_empty_output_or_start_is_refused_and_nothing_is_written(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    refused(["simulate", "simple", "--html", ""], "--html", "expected FILE")
+    refused(["optimize", "simple", "--budget", "small", "--start", ""], "--start",
+            "expected LAYOUT")
+    refused(["check", "simple", "--parts", ""], "--parts", "expected DIR")
+    assert list(tmp_path.iterdir()) == []  # no page, no run directory

@@ -65,7 +65,23 @@ class Parser(argparse.ArgumentParser):
                 hint = _suggest(flag, given.flags())
             Parser(prog=" ".join(["rgmcad", *words])).error(
                 f"unrecognized arguments: {' '.join(extra)}{hint}")
+        self._no_blank_values(args)
         return args
+
+    def _no_blank_values(self, args) -> None:
+        """An empty or blank value (``--html ""``, ``--start " "``) is no file, layout or
+        address: refused naming its flag, not taken as "none given" or as the folder ``.``."""
+        words = [w for w in (getattr(args, "command", None), getattr(args, "subcommand", None)) if w]
+        given = self.commands.get(" ".join(words), self) if words else self
+        for parser in dict.fromkeys([given, self]):
+            for action in parser._actions:
+                value = getattr(args, action.dest, None) if action.dest else None
+                values = value if isinstance(value, list) else [value]
+                if value is not action.default and any(
+                        isinstance(v, str) and not v.strip() for v in values):
+                    name = action.option_strings[-1] if action.option_strings else action.dest
+                    what = action.metavar or action.dest.upper()
+                    parser.error(f"argument {name}: expected {what}, got an empty value")
 
     def _unknown_before_command(self, words: list[str]) -> None:
         """An unknown option before the command would make its value read as the command
