@@ -36,6 +36,8 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "benchmark": ("benchmark", "compare our method with the paper's baselines and CMA-ES "
                   "(a table like Table 1, resumable)"),
     "export": ("export", "write a posed layout as one CAD assembly (STEP in mm, or GLB)"),
+    "live": ("live", "serve a live page of a scenario that simulates it again on every save, "
+             "with sliders, a sweep and layouts side by side"),
 }
 """Command -> (module of rgmcad.cli, help). Multi-word commands are sub-commands."""
 
