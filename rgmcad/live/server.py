@@ -198,6 +198,6 @@ async def _serve(options: LiveOptions, sock: socket.socket, ready) -> None:
         log.info("stopped after %.0f s", time.perf_counter() - started)
     finally:
         loop.remove_signal_handler(signal.SIGTERM)
-        watcher.stop()
-        await session.close()
+        # the watcher's thread takes up to a second to notice; the worker stops meanwhile
+        await asyncio.gather(asyncio.to_thread(watcher.stop), session.close())
         await runner.cleanup()

@@ -78,7 +78,7 @@ class Session:
         self._context = multiprocessing.get_context("spawn")
         self._shared = self._context.Value("q", 0, lock=False)
         self._pool: concurrent.futures.ProcessPoolExecutor | None = None
-        self._pids: set[int] = set()
+        self._pid: int | None = None  # the worker's, once it said
         self._tasks: set[asyncio.Task] = set()
         self._changed_at: float | None = None
         self._sweep_token = None
@@ -86,18 +86,30 @@ class Session:
     # --- the worker -------------------------------------------------------------------------
 
     def _start_pool(self) -> None:
-        self._pool = concurrent.futures.ProcessPoolExecutor(
+        self._pool = pool = concurrent.futures.ProcessPoolExecutor(
             1, mp_context=self._context, initializer=worker.init,
             initargs=(self._shared, os.getpid(), self.options.log_level))
-        self._pool.submit(worker.hello).add_done_callback(
-            lambda f: None if f.cancelled() or f.exception() else self._pids.add(f.result()))
+        self._pid = None
+
+        def known(future) -> None:
+            if self._pool is pool and not future.cancelled() and future.exception() is None:
+                self._pid = future.result()
+
+        pool.submit(worker.hello).add_done_callback(known)
 
     async def _run(self, task, *args) -> dict:
-        """``task(*args)`` in the worker; a worker that died is replaced (one line says so)."""
-        if self._pool is None:
-            self._start_pool()
+        """``task(*args)`` in the worker. A worker found dead is replaced first; one that
+        dies while it works is replaced too, and the page says so in one line."""
+        for _ in range(2):
+            if self._pool is None:
+                self._start_pool()
+            try:
+                future = self._pool.submit(task, *args)
+                break
+            except BrokenProcessPool:
+                self._pool = None
         try:
-            return await asyncio.wrap_future(self._pool.submit(task, *args))
+            return await asyncio.wrap_future(future)
         except BrokenProcessPool:
             self._pool = None
             return {"error": "rgmcad: error: the simulation worker stopped unexpectedly; a new "
@@ -118,12 +130,11 @@ class Session:
             return
         stopping = asyncio.ensure_future(asyncio.to_thread(pool.shutdown, True, cancel_futures=True))
         done, _ = await asyncio.wait([stopping], timeout=STOP_WITHIN)
-        if not done:
-            for pid in self._pids:
-                try:
-                    os.kill(pid, signal.SIGKILL)
-                except OSError:
-                    pass
+        if not done and self._pid is not None:
+            try:
+                os.kill(self._pid, signal.SIGKILL)
+            except OSError:
+                pass
             await stopping
 
     # --- requests ---------------------------------------------------------------------------
@@ -175,7 +186,8 @@ class Session:
             self.state.update(busy=False, error=None, took=took, view=self.state["view"] + 1,
                               info=self.info, main=answer["main"], compare=answer["compare"],
                               note=answer["note"], seconds=answer["seconds"])
-        self.state.update(layout=self.layout, compare_layout=self.compare, layouts=self.layouts())
+        self.state.update(generation=req.generation, layout=self.layout,
+                          compare_layout=self.compare, layouts=self.layouts())
         log.info("%s in %.3f s", answer.get("error") or answer["main"]["outcome"], took)
         await self.broadcast()
 
