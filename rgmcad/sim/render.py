@@ -21,6 +21,7 @@ import numpy as np
 
 from rgmcad.geometry import to_pybullet
 from rgmcad.scene.bodies import Scene
+from rgmcad.scene.palette import plane_colour, runs_of, scene_colours
 from rgmcad.sim.causal import EventState
 from rgmcad.sim.engine import Engine, pb
 
@@ -36,12 +37,6 @@ HOLD_END = 1.5
 """Seconds the last frame of a video stays, to read the outcome."""
 
 _BACKGROUND = (255, 255, 255)
-_FLOOR = (0.90, 0.90, 0.88, 1.0)
-_BOARD = (0.95, 0.94, 0.92, 1.0)
-_STATIC = (0.62, 0.60, 0.56, 1.0)
-_PALETTE = [(0.85, 0.33, 0.10, 1), (0.13, 0.47, 0.71, 1), (0.17, 0.63, 0.17, 1),
-            (0.58, 0.40, 0.74, 1), (0.89, 0.47, 0.76, 1), (0.74, 0.64, 0.13, 1),
-            (0.09, 0.65, 0.71, 1), (0.55, 0.34, 0.29, 1)]
 _SUCCESS, _FAILURE, _PENDING = (20, 130, 40), (200, 30, 30), (120, 120, 120)
 
 
@@ -62,7 +57,8 @@ class Renderer:
     ----------
     scene : the layout (its poses place the camera and the floor).
     width, height : pixels of a picture.
-    runs : object name -> its domino run's name (the dominoes of a run share a colour).
+    runs : object name -> its domino run's name (the dominoes of a run share a colour
+        family: :mod:`rgmcad.scene.palette`, as in the replay and the report).
     supersample : draw at twice the size and reduce (smooth edges; four times the cost, so
         videos leave it out).
     """
@@ -76,18 +72,14 @@ class Renderer:
         self.scale = 2 if supersample and max(width, height) <= SUPERSAMPLE_UP_TO else 1
         self.engine = Engine()
         self.ghosts: dict[str, int] = {}
-        run_colours: dict[str, tuple] = {}
+        self.colours = scene_colours(scene, runs)  # body name -> RGB in [0, 1]
         solid = [b for b in scene.bodies.values() if not b.plane]
-        for i, body in enumerate(solid):
-            obj_run = (runs or {}).get(body.object)
-            colour = (_STATIC if body.static else
-                      run_colours.setdefault(obj_run, _PALETTE[len(run_colours) % len(_PALETTE)])
-                      if obj_run
-                      else _PALETTE[i % len(_PALETTE)])
+        for body in solid:
             v, f, n = _shaded(body.built.vertices, body.built.faces)
             shape = self.engine.createVisualShape(
                 pb.GEOM_MESH, vertices=v.tolist(), indices=f.ravel().tolist(),
-                normals=n.tolist(), rgbaColor=colour, specularColor=[0.15, 0.15, 0.15])
+                normals=n.tolist(), rgbaColor=(*self.colours[body.name], 1.0),
+                specularColor=[0.15, 0.15, 0.15])
             self.ghosts[body.name] = self.engine.createMultiBody(0, -1, shape)
         self.posed = {name: body.pose for name, body in scene.bodies.items()}
         bead = self.engine.createVisualShape(pb.GEOM_SPHERE, radius=BEAD,
@@ -109,10 +101,9 @@ class Renderer:
         centre = centre - np.dot(centre - origin, normal) * normal  # onto the plane
         side = 3 * float(np.linalg.norm(self.hi - self.lo)) + 0.1
         thickness = 0.002
-        horizontal = abs(normal[2]) > 0.5
         shape = self.engine.createVisualShape(
             pb.GEOM_BOX, halfExtents=[side / 2, side / 2, thickness / 2],
-            rgbaColor=_FLOOR if horizontal else _BOARD)
+            rgbaColor=(*plane_colour(pose), 1.0))
         placed = pose.copy()
         placed[:3, 3] = centre - normal * thickness / 2
         pos, orn = to_pybullet(placed)
@@ -329,7 +320,7 @@ def record_video(scenario, values, parts, path: Path, fps: float, width: int, he
     from rgmcad.scene.bodies import make_scene
     from rgmcad.sim.run import simulate
 
-    renderer = Renderer(make_scene(scenario, values, parts), width, height, _runs(scenario),
+    renderer = Renderer(make_scene(scenario, values, parts), width, height, runs_of(scenario),
                         supersample=False)
     frames: list[tuple] = []
 
@@ -366,15 +357,11 @@ def record_video(scenario, values, parts, path: Path, fps: float, width: int, he
     return result
 
 
-def _runs(scenario) -> dict[str, str]:
-    return {o.name: o.run for o in scenario.objects.values() if o.run is not None}
-
-
 def render_png(scenario, scene: Scene, path: Path, width: int, height: int,
                show_labels: bool = False, show_scale: bool = True) -> tuple[float, float] | None:
     """Draw a posed scene (at rest, before any step) to a PNG file; the scale bar's length
     (mm, pixels), if drawn."""
-    renderer = Renderer(scene, width, height, _runs(scenario))
+    renderer = Renderer(scene, width, height, runs_of(scenario))
     try:
         image = renderer.image()
     finally:

@@ -19,8 +19,10 @@ _SCRIPTS = {  # element id -> packaged file
     "rgmcad-orbit": "vendor/OrbitControls.js",
     "rgmcad-viewer": "assets/viewer.js",
 }
-_HELP = ('<p class="muted">Drag to turn the view, scroll to zoom, right-drag to pan; space '
-         "plays or pauses. 3D view by three.js (MIT licence, bundled in this file).</p>")
+_HELP = ('<p class="muted">Drag to turn the view, scroll to zoom, right-drag to pan; '
+         "<kbd>r</kbd> or Reset view returns to the first view. Point at a part for its name; "
+         "<kbd>n</kbd> or names shows them all. Space plays or pauses. 3D view by three.js (MIT "
+         "licence, bundled in this file).</p>")
 SPEEDS = (("1x", 1.0), ("1/4x", 0.25), ("1/10x", 0.1))
 
 
@@ -71,6 +73,8 @@ def replay_section(payload: dict) -> str:
 <span class="clock">0.000 s</span>
 {speeds}
 <label><input class="loop" type="checkbox" checked> loop</label>
+<label title="the parts' names (n)"><input class="names" type="checkbox"> names</label>
+<button class="reset-view" title="back to the first view (r)">Reset view</button>
 <span class="outcome {outcome}">{outcome}</span>
 </div>
 <div class="track">{"".join(marks)}<span class="playhead"></span></div>

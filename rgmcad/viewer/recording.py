@@ -19,6 +19,7 @@ import numpy as np
 
 from rgmcad.geometry import transform_points
 from rgmcad.scene.model import Scenario
+from rgmcad.scene.palette import plane_colour, runs_of, scene_colours
 
 __all__ = ["DEFAULT_RATE", "Replay", "record_replay", "replay_payload"]
 
@@ -54,6 +55,9 @@ class Replay:
     events : tuple of dict
         ``{"name", "after", "join", "state", "time", "description"}`` in the scenario's order.
     outcome : str
+    labels : tuple of str, optional
+        What names each body in the viewer's labels: its object, or its domino run (labelled
+        once, at its first domino). None: each body by its own name.
     """
 
     title: str
@@ -67,11 +71,7 @@ class Replay:
     poses: np.ndarray
     events: tuple[dict, ...]
     outcome: str
-
-
-_STATIC = (0.72, 0.70, 0.66)
-_PALETTE = [(0.85, 0.33, 0.10), (0.13, 0.47, 0.71), (0.17, 0.63, 0.17), (0.58, 0.40, 0.74),
-            (0.89, 0.47, 0.76), (0.74, 0.74, 0.13), (0.09, 0.75, 0.81), (0.55, 0.34, 0.29)]
+    labels: tuple[str, ...] | None = None
 
 
 def record_replay(scenario: Scenario, values, parts: Mapping, *, rate: float = DEFAULT_RATE,
@@ -107,9 +107,11 @@ def record_replay(scenario: Scenario, values, parts: Mapping, *, rate: float = D
     if not frames:
         return result, None
     scene = scene_of[0]
+    runs = runs_of(scenario)
+    palette = scene_colours(scene, runs)  # the colours of the PNG, the video and the report
     keys: dict[int, int] = {}
-    meshes, mesh_of, static, colors, planes = [], [], [], [], []
-    for i, body in enumerate(scene.bodies.values()):
+    meshes, mesh_of, static, colors, planes, labels = [], [], [], [], [], []
+    for body in scene.bodies.values():
         if body.plane:
             planes.append(np.asarray(body.pose, float))
             continue
@@ -119,17 +121,19 @@ def record_replay(scenario: Scenario, values, parts: Mapping, *, rate: float = D
                            np.asarray(body.built.faces, np.int64)))
         mesh_of.append(k)
         static.append(body.static)
-        colors.append(_STATIC if body.static else _PALETTE[i % len(_PALETTE)])
-    labels = {e.name: e for e in result.events}
+        colors.append(palette[body.name])
+        labels.append(runs.get(body.object, body.object))
+    seen = {e.name: e for e in result.events}
     events = tuple({"name": name, "after": list(spec.after), "join": spec.join,
-                    "state": labels[name].state.value,
-                    "time": labels[name].time, "description": spec.description}
+                    "state": seen[name].state.value,
+                    "time": seen[name].time, "description": spec.description}
                    for name, spec in scenario.events.items())
     return result, Replay(
         title=title or scenario.name, bodies=tuple(names), meshes=tuple(meshes),
         mesh_of=np.asarray(mesh_of), static=np.asarray(static, bool),
         colors=np.asarray(colors, float), planes=tuple(planes), times=np.asarray(times),
-        poses=np.stack(frames), events=events, outcome=result.outcome.value)
+        poses=np.stack(frames), events=events, outcome=result.outcome.value,
+        labels=tuple(labels))
 
 
 def _b64(array: np.ndarray, dtype: str) -> str:
@@ -164,6 +168,8 @@ def replay_payload(replay: Replay) -> dict:
     pos = np.round((track[..., :3, 3] - centre) / half * _Q)
     quat = np.round(_quaternions(track[..., :3, :3]) * _Q)
     first = replay.poses[0]
+    labels = replay.labels if replay.labels and len(replay.labels) == len(replay.bodies) \
+        else replay.bodies
     meshes = []
     for vertices, faces in replay.meshes:
         index = "u2" if len(vertices) < 65536 else "u4"
@@ -174,12 +180,13 @@ def replay_payload(replay: Replay) -> dict:
         "outcome": replay.outcome,
         "bodies": [{"name": n, "mesh": int(replay.mesh_of[b]),
                     "color": [round(float(c), 3) for c in replay.colors[b]],
-                    "static": bool(replay.static[b]),
+                    "static": bool(replay.static[b]), "label": labels[b],
                     "position": [float(v) for v in first[b, :3, 3]],
                     "quaternion": [float(v) for v in _quaternions(first[None, b, :3, :3])[0]]}
                    for b, n in enumerate(replay.bodies)],
         "meshes": meshes,
         "planes": [[float(v) for v in p.T.ravel()] for p in replay.planes],  # column-major
+        "plane_colors": [list(plane_colour(p)) for p in replay.planes],
         "bounds": [lo.tolist(), hi.tolist()],
         "times": _b64(replay.times, "f4"),
         "duration": float(replay.times[-1]),

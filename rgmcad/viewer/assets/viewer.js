@@ -48,11 +48,13 @@ const objects = data.bodies.map((b) => {
   scene.add(mesh);
   return mesh;
 });
-for (const p of data.planes) {
+data.planes.forEach((p, i) => {
   const m = new THREE.Matrix4().fromArray(p);
   const size = radius * 3.5;
+  const rgb = data.plane_colors && data.plane_colors[i];  // absent from pages of older payloads
+  const color = rgb ? new THREE.Color().setRGB(...rgb, THREE.SRGBColorSpace) : new THREE.Color(0xdedbd4);
   const plane = new THREE.Mesh(new THREE.PlaneGeometry(size, size),
-    new THREE.MeshStandardMaterial({ color: 0xdedbd4, roughness: 0.9, side: THREE.DoubleSide }));
+    new THREE.MeshStandardMaterial({ color, roughness: 0.9, side: THREE.DoubleSide }));
   const grid = new THREE.GridHelper(size, Math.round(size / 0.05), 0xb9b5ac, 0xcdc9c0);
   grid.rotation.x = Math.PI / 2;  // the helper lies in x-z; the plane's own frame has +z up
   grid.position.z = radius * 1e-3;
@@ -64,7 +66,7 @@ for (const p of data.planes) {
   const onPlane = centre.clone().sub(normal.clone().multiplyScalar(centre.clone().sub(holder.position).dot(normal)));
   holder.position.copy(onPlane);
   scene.add(holder);
-}
+});
 
 const camera = new THREE.PerspectiveCamera(40, 1, radius / 50, radius * 40);
 camera.up.set(0, 0, 1);
@@ -78,7 +80,27 @@ sun.target.position.copy(centre);
 scene.add(sun.target);
 const controls = new OrbitControls(camera, renderer.domElement);
 controls.target.copy(centre);
+
+// The camera never goes under the floor: the highest horizontal plane under the layout, or,
+// without one, the layout's lowest point. Orbiting stops short of the horizon (the polar
+// angle is measured from camera.up, +z) and panning stops with the target on the floor, so
+// the camera, above the target, stays above the floor.
+const floorZ = data.planes.map((p) => [new THREE.Vector3(p[8], p[9], p[10]), new THREE.Vector3(p[12], p[13], p[14])])
+  .filter(([n]) => Math.abs(n.z) > 0.5)
+  .map(([n, o]) => o.z - (n.x * (centre.x - o.x) + n.y * (centre.y - o.y)) / n.z)
+  .reduce((a, b) => Math.max(a, b), -Infinity);
+const floor = Number.isFinite(floorZ) ? floorZ : lo.z;
+controls.maxPolarAngle = Math.PI / 2 - 0.05;
+function keepAboveFloor() {
+  const rise = Math.max(floor - controls.target.z, floor + radius * 1e-3 - camera.position.z, 0);
+  if (rise > 0) {  // lift target and camera together: the view keeps its direction
+    controls.target.z += rise;
+    camera.position.z += rise;
+  }
+}
+controls.addEventListener('change', keepAboveFloor);
 controls.update();
+controls.saveState();  // the framing the reset-view button returns to
 
 // --- playback ------------------------------------------------------------------------------
 const ui = {
@@ -89,6 +111,8 @@ const ui = {
   loop: root.querySelector('.loop'),
   head: root.querySelector('.playhead'),
   events: [...root.querySelectorAll('[data-event]')],
+  reset: root.querySelector('.reset-view'),  // absent from pages written before them
+  names: root.querySelector('.names'),
 };
 const state = { t: 0, playing: true, speed: 1, last: null };
 const qa = new THREE.Quaternion(), qb = new THREE.Quaternion();
@@ -132,6 +156,86 @@ function showTime() {
   }
 }
 
+// --- part names: under the pointer, and on request beside every object ---------------------
+function overlay(className) {
+  const el = document.createElement('div');
+  el.className = className;
+  view.appendChild(el);
+  return el;
+}
+const tip = overlay('hover-name');
+tip.hidden = true;
+const tags = overlay('name-tags');
+tags.hidden = true;
+const meshCentres = geometries.map((g) => {
+  g.computeBoundingBox();
+  return g.boundingBox.getCenter(new THREE.Vector3());
+});
+// one tag per object, a domino run's once (at its first domino): the PNG's labels
+const tagged = new Map();
+data.bodies.forEach((b, k) => { if (!tagged.has(b.label || b.name)) tagged.set(b.label || b.name, k); });
+const tagOf = [...tagged].map(([text, k]) => {
+  const el = document.createElement('span');
+  el.textContent = text;
+  tags.appendChild(el);
+  return [el, k];
+});
+const ndc = new THREE.Vector3();
+
+function onScreen(k) {
+  // [x, y] in the view's pixels of body k's centre, or null when behind the camera
+  objects[k].updateMatrixWorld();
+  ndc.copy(meshCentres[data.bodies[k].mesh]).applyMatrix4(objects[k].matrixWorld).project(camera);
+  if (ndc.z < -1 || ndc.z > 1) return null;
+  return [(ndc.x + 1) / 2 * view.clientWidth, (1 - ndc.y) / 2 * view.clientHeight];
+}
+
+function placeTags() {
+  if (tags.hidden) return;
+  for (const [el, k] of tagOf) {
+    const at = onScreen(k);
+    el.hidden = at === null;
+    if (at) el.style.transform = `translate(${at[0].toFixed(1)}px, ${at[1].toFixed(1)}px) translate(-50%, -130%)`;
+  }
+}
+
+function showNames(on) {
+  tags.hidden = !on;
+  if (ui.names) ui.names.checked = on;
+  placeTags();
+}
+
+const raycaster = new THREE.Raycaster();
+const pointer = { inside: false, down: false, x: 0, y: 0 };
+let hovered = null;
+
+function partAt(x, y) {
+  // the body drawn at (x, y), view pixels: the nearest one the ray through it meets
+  raycaster.setFromCamera(new THREE.Vector2(x / view.clientWidth * 2 - 1, 1 - y / view.clientHeight * 2), camera);
+  const hit = raycaster.intersectObjects(objects, false)[0];
+  return hit ? hit.object : null;
+}
+
+function hover() {
+  const part = pointer.inside && !pointer.down ? partAt(pointer.x, pointer.y) : null;
+  if (hovered && hovered !== part) hovered.material.emissive.setHex(0x000000);
+  hovered = part;
+  tip.hidden = part === null;
+  if (!part) return;
+  part.material.emissive.setHex(0x303030);
+  tip.textContent = part.name;
+  tip.style.transform = `translate(${pointer.x + 14}px, ${pointer.y + 10}px)`;
+}
+
+const canvas = renderer.domElement;
+canvas.addEventListener('pointermove', (e) => {
+  const box = view.getBoundingClientRect();
+  Object.assign(pointer, { inside: true, x: e.clientX - box.left, y: e.clientY - box.top });
+});
+canvas.addEventListener('pointerleave', () => { pointer.inside = false; });
+canvas.addEventListener('pointerdown', () => { pointer.down = true; });
+window.addEventListener('pointerup', () => { pointer.down = false; });
+
 function resize() {
   const w = view.clientWidth, h = view.clientHeight;
   renderer.setSize(w, h, false);
@@ -151,7 +255,9 @@ function tick(now) {
   pose(state.t);
   showTime();
   controls.update();
+  hover();  // every frame: the parts move under a still pointer
   renderer.render(scene, camera);
+  placeTags();
   requestAnimationFrame(tick);
 }
 
@@ -167,8 +273,15 @@ for (const button of ui.speeds) {
     for (const b of ui.speeds) b.classList.toggle('on', b === button);
   });
 }
+if (ui.reset) ui.reset.addEventListener('click', () => controls.reset());
+if (ui.names) ui.names.addEventListener('change', () => showNames(ui.names.checked));
 window.addEventListener('keydown', (e) => {
   if (e.code === 'Space' && e.target.tagName !== 'INPUT') { e.preventDefault(); ui.play.click(); }
+  const typing = e.target.isContentEditable || e.target.tagName === 'TEXTAREA'
+    || (e.target.tagName === 'INPUT' && !['checkbox', 'range', 'button'].includes(e.target.type));
+  if (typing || e.ctrlKey || e.metaKey || e.altKey) return;  // Ctrl+R still reloads
+  if (e.key === 'r' || e.key === 'R') controls.reset();
+  if (e.key === 'n' || e.key === 'N') showNames(tags.hidden);
 });
 
 resize();
@@ -182,6 +295,23 @@ window.rgmcadViewer = {
   pause: () => { state.playing = false; },
   seek: (t) => { state.t = Math.min(Math.max(t, 0), duration); pose(state.t); showTime(); },
   setSpeed: (s) => { state.speed = s; },
+  // read-only views for tests and debugging: copies, not the live objects
+  get camera() {
+    return { position: camera.position.toArray(), target: controls.target.toArray(), up: camera.up.toArray() };
+  },
+  floor,
+  resetView: () => controls.reset(),
+  showNames,
+  namesShown: () => !tags.hidden,
+  // where body `name`'s centre is drawn, in page pixels (null: not a body, or behind the camera)
+  screenPoint: (name) => {
+    const k = objects.findIndex((o) => o.name === name);
+    const at = k < 0 ? null : onScreen(k);
+    if (!at) return null;
+    const box = view.getBoundingClientRect();
+    return [box.left + at[0], box.top + at[1]];
+  },
+  hovered: () => (tip.hidden ? null : tip.textContent),
 };
 root.dataset.ready = '1';
 requestAnimationFrame(tick);
