@@ -163,6 +163,7 @@ def test_every_open_page_gets_every_update(fresh):
     assert asyncio.run(two_pages()) == ["failure", "failure"]
 
 
+@pytest.mark.slow  # 3-6 s: two workers started again
 def test_a_comparison_and_a_dead_worker(fresh):
     s = fresh.talk([{"type": "compare", "name": "solved"},
                     {"type": "set", "name": "track.roll", "value": 60.0}],

@@ -1,12 +1,13 @@
 // rgmcad live page: shows the state the server pushes over a WebSocket (rgmcad/live/session.py)
-// and sends back what the user changes. The 3D replay is the viewer's own page (/view), loaded
-// into the frame each time a new result is ready.
+// and sends back what the user changes. The 3D replay is the viewer's own page (/view): each new
+// result is loaded into the hidden one of two frames, shown once its viewer is ready, so the
+// picture never goes blank while the next one loads.
 (function () {
   'use strict';
   const $ = (selector) => document.querySelector(selector);
   const ui = {
     scenario: $('#scenario'), status: $('#status'), error: $('#error'), note: $('#note'),
-    view: $('#view'), outcome: $('#outcome'), fails: $('#fails'), overlaps: $('#overlaps'),
+    frames: [$('#view-a'), $('#view-b')], outcome: $('#outcome'), fails: $('#fails'), overlaps: $('#overlaps'),
     versus: $('#versus'), layout: $('#layout'), sliders: $('#sliders'), compare: $('#compare'),
     saveName: $('#save-name'), save: $('#save'), notice: $('#notice'), events: $('#events tbody'),
     sweepName: $('#sweep-name'), sweepPoints: $('#sweep-points'), sweep: $('#sweep'),
@@ -139,19 +140,33 @@
   }
 
   // the frame's page is ready once the viewer says so (or it has no viewer: the waiting page)
-  function watchFrame(version) {
+  function watchFrame(frame, version) {
     const check = () => {
-      if (version !== loading) return;
-      const doc = ui.view.contentDocument;
+      if (version !== loading) return;  // a newer result is on its way
+      const doc = frame.contentDocument;
       const root = doc && doc.getElementById('rgmcad-replay');
-      const waiting = doc && doc.readyState === 'complete' && !root && !doc.getElementById('rgmcad-replay-data');
-      if (root && (root.dataset.ready === '1' || root.dataset.error)) {
+      const plain = doc && doc.readyState === 'complete' && !root && !doc.getElementById('rgmcad-replay-data');
+      if (plain || (root && (root.dataset.ready === '1' || root.dataset.error))) {
+        const front = ui.frames.find((f) => f.classList.contains('front'));
+        frame.classList.add('front');
+        if (front !== frame) {
+          front.classList.remove('front');
+          front.src = 'about:blank';  // its 3D view goes with it
+        }
         document.body.dataset.picture = String(version);
-      } else if (!waiting) {
+      } else {
         setTimeout(check, 20);
       }
     };
     check();
+  }
+
+  function show(version) {
+    loading = version;
+    const front = ui.frames.find((f) => f.classList.contains('front'));
+    const back = ui.frames.find((f) => f !== front);
+    back.onload = () => { if (back.src.endsWith(`v=${version}`)) watchFrame(back, version); };
+    back.src = `/view?v=${version}`;
   }
 
   function render(s) {
@@ -176,12 +191,10 @@
     sweep(s.sweep);
     if (s.view !== Number(document.body.dataset.view)) {
       document.body.dataset.view = String(s.view);
-      loading = s.view;
-      ui.view.src = `/view?v=${s.view}`;
+      show(s.view);
     }
   }
 
-  ui.view.addEventListener('load', () => watchFrame(loading));
   ui.layout.addEventListener('change', () => send({ type: 'layout', name: ui.layout.value }));
   ui.compare.addEventListener('change', () => send({ type: 'compare', name: ui.compare.value || null }));
   ui.save.addEventListener('click', () => send({ type: 'save', name: ui.saveName.value.trim() }));
