@@ -12,12 +12,16 @@ def configure(p) -> None:
 
 
 def run(args) -> int:
+    from rgmcad.errors import printable
     from rgmcad.scene.bodies import make_scene
     from rgmcad.scene.design_space import values_from_mapping
     from rgmcad.sim.validity import check_validity
 
     scenario = load_scenario_arg(args)
-    say(f"{scenario.name}: {scenario.description}" if scenario.description else scenario.name)
+    # the description is free text from the file: its control characters are shown escaped
+    # (names are checked when read: letters, digits, '_' and '-')
+    say(f"{scenario.name}: {printable(scenario.description)}" if scenario.description
+        else scenario.name)
     bodies = scenario.body_objects()
     n_runs = len(scenario.runs)
     say(f"\nobjects ({len(bodies)} parts, {n_runs} domino run{'' if n_runs == 1 else 's'}):")

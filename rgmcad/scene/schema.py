@@ -22,7 +22,7 @@ from contextlib import contextmanager
 from contextvars import ContextVar
 from dataclasses import dataclass
 
-from rgmcad.errors import ScenarioError
+from rgmcad.errors import ScenarioError, printable
 
 log = logging.getLogger("rgmcad.scene")
 
@@ -358,7 +358,9 @@ _PENDING: ContextVar[list[str] | None] = ContextVar("rgmcad_scene_warnings", def
 
 
 def warn(message: str) -> None:
-    """A warning about a value that loads but is probably a slip (logged once loading ends)."""
+    """A warning about a value that loads but is probably a slip (logged once loading ends;
+    a file's name and keys in it shown :func:`~rgmcad.errors.printable`)."""
+    message = printable(message)
     pending = _PENDING.get()
     if pending is None:
         log.warning(message)
