@@ -172,3 +172,52 @@ PATHS = {
     "polyline": polyline,
 }
 """Run path generators by the name used in scenario files (``path = { kind = "line", ... }``)."""
+
+
+def overlaps(coords, thickness: float, width: float, tolerance: float, enough: int | None = None):
+    """``(i, j, depth)`` arrays of the pairs ``i < j`` of dominoes of a run (``(n, 3)`` x, y,
+    heading in degrees) whose footprints, ``thickness`` along the heading by ``width`` across,
+    overlap by more than ``tolerance`` (m): neighbours first, then by ``i`` and ``j``; no
+    further than the first block that brings them past ``enough``. The depth is the least
+    overlap along the four sides' directions (separating axes). Standing dominoes of one run
+    are the same box at the same height, so these are the pairs the validity check would
+    intersect exactly. Milliseconds for a run of a thousand, in blocks of rows."""
+    coords = np.asarray(coords, float)
+    n, xy = len(coords), coords[:, :2]
+    sin, cos = sin_cos_degrees(coords[:, 2])
+    near = np.hypot(thickness, width)  # centres farther apart cannot overlap
+    found, total = [], 0
+
+    def add(i, j) -> bool:
+        """Test the pairs (i, j); whether more than ``enough`` overlap so far."""
+        nonlocal total
+        depth = _footprint_overlap(xy[j] - xy[i], cos[i], sin[i], cos[j], sin[j], thickness,
+                                   width)
+        hit = depth > tolerance
+        found.append((i[hit], j[hit], depth[hit]))
+        total += int(hit.sum())
+        return enough is not None and total > enough
+
+    if not add(np.arange(n - 1), np.arange(1, n)):
+        for start in range(0, n, 64):  # rows start..start+63 against every later domino
+            rows = np.arange(start, min(start + 64, n))
+            r, j = np.nonzero((np.linalg.norm(xy[rows, None] - xy[None], axis=2) < near)
+                              & (np.arange(n)[None] > rows[:, None] + 1))
+            if add(rows[r], j):
+                break
+    return tuple(np.concatenate(parts) for parts in zip(*found, strict=True))
+
+
+def _footprint_overlap(gap, cos_i, sin_i, cos_j, sin_j, thickness, width):
+    """Least overlap (m) of the footprints of pairs of equal dominoes, along the four
+    directions of their sides (negative: apart), ``gap`` (p, 2) from the first to the
+    second."""
+    c = np.abs(cos_i * cos_j + sin_i * sin_j)  # |cos| and |sin| of the angle between them
+    s = np.abs(sin_j * cos_i - cos_j * sin_i)
+    along = (thickness + thickness * c + width * s) / 2  # reach of both along a long side
+    across = (width + thickness * s + width * c) / 2
+    gx, gy = gap[:, 0], gap[:, 1]
+    return np.minimum.reduce([along - np.abs(gx * cos_i + gy * sin_i),
+                              across - np.abs(-gx * sin_i + gy * cos_i),
+                              along - np.abs(gx * cos_j + gy * sin_j),
+                              across - np.abs(-gx * sin_j + gy * cos_j)])

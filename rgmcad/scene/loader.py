@@ -28,6 +28,7 @@ from rgmcad.scene import dominoes, svg_runs
 from rgmcad.scene.loader_checks import (
     check_keys,
     check_name,
+    check_overlaps,
     check_scenario_name,
     expect,
     key_text,
@@ -244,6 +245,7 @@ def _expand_run(run_name, raw, families, objects, where, key, folder) -> list[st
         {"length": size["thickness"], "width": size["width"], "height": size["height"]},
         where=where, key=f"{key}.domino")
     coords = _run_path(raw, where, key, folder)
+    check_overlaps(coords, params.length, params.width, where, f"{key}.path")
     tilt = RUN["tilt"].read(raw.get("tilt", 0.0), where, f"{key}.tilt")
     physical = _parse_physical(raw, where, key)
     names = []

@@ -10,8 +10,11 @@ import math
 import re
 from pathlib import Path
 
+import numpy as np
+
 from rgmcad.errors import ScenarioError
-from rgmcad.scene.schema import MAX_FILE_BYTES, MAX_NAME, show
+from rgmcad.scene.dominoes import overlaps
+from rgmcad.scene.schema import MAX_FILE_BYTES, MAX_NAME, MAX_RUN_OVERLAPS, TOUCHING, show
 
 _KINDS = {"str": "a string", "dict": "a table", "list": "a list", "int": "an integer",
           "float": "a number", "bool": "true/false"}
@@ -79,6 +82,28 @@ def one_line(error: ScenarioError) -> ScenarioError:
     if (where, key, message) == (error.where, error.key, error.message):
         return error
     return type(error)(where, key, message)
+
+
+def check_overlaps(coords, thickness: float, width: float, where, key) -> None:
+    """The standing dominoes of a run (``(n, 3)`` x, y, heading) overlap each other (by more
+    than TOUCHING) in at most MAX_RUN_OVERLAPS pairs: the validity check intersects each such
+    pair exactly, and a thousand dominoes inside each other would make half a million of
+    them (minutes). Fewer overlaps load, and the check reports them as an invalid layout."""
+    pairs = overlaps(coords, thickness, width, TOUCHING, enough=MAX_RUN_OVERLAPS)
+    if len(pairs[0]) <= MAX_RUN_OVERLAPS:
+        return
+    i, j, depth = (p[0] for p in pairs)
+    gap, n, t, w = float(np.linalg.norm(coords[j, :2] - coords[i, :2])), len(coords), thickness, width
+    many = f"more than {MAX_RUN_OVERLAPS:,} pairs of its dominoes overlap, the most a run may have"
+    if j == i + 1 and gap < t:
+        raise ScenarioError(where, key, f"{many}: dominoes {i} and {j} stand {gap * 1000:.3g} mm "
+                            f"apart, less than a domino's thickness ({t * 1000:g} mm); space "
+                            f"them at least {t * 1000:g} mm apart ({n:,} dominoes need "
+                            f"{(n - 1) * t:.4g} m of path or more)")
+    raise ScenarioError(where, key, f"{many} (dominoes {i} and {j} by {depth * 1000:.3g} mm, "
+                        f"{gap * 1000:.3g} mm apart): the path turns too tightly for dominoes "
+                        f"{w * 1000:g} mm wide, or passes twice through one place; space them "
+                        "further apart or widen its curves")
 
 
 def read_text(path: Path, what: str = "scenario file") -> str:

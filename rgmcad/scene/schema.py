@@ -52,11 +52,19 @@ MAX_PULLEYS = 100
 """Pulley points of one rope."""
 MIN_RANGE = 1e-6
 """Narrowest free range (m or deg): a narrower one maps tiny moves to huge design vectors."""
+TOUCHING = 2e-4
+"""Deepest overlap (m) of two dominoes of one run still counted as touching (the layout
+validity check's tolerance)."""
+MAX_RUN_OVERLAPS = 100
+"""Pairs of dominoes of one run that overlap (deeper than :data:`TOUCHING`): a sharp corner
+makes a few, which the validity check reports; dominoes inside each other make up to half a
+million, each an exact intersection for that check (minutes), and are refused."""
 
 LIMITS = {
     "file size": "2 MiB",
     "bodies (objects, dominoes and frames)": f"{MAX_BODIES:,}",
     "dominoes per run": f"{MAX_RUN:,}",
+    "overlapping pairs of dominoes in one run": f"{MAX_RUN_OVERLAPS:,}",
     "events": f"{MAX_EVENTS:,}",
     "joints": f"{MAX_JOINTS:,}",
     "ropes": f"{MAX_ROPES:,}",
