@@ -7,7 +7,9 @@ what is allowed. Numbers are checked against :mod:`rgmcad.scene.schema`.
 from __future__ import annotations
 
 import math
+import os
 import re
+import stat
 from pathlib import Path
 
 import numpy as np
@@ -106,22 +108,57 @@ def check_overlaps(coords, thickness: float, width: float, where, key) -> None:
                         "further apart or widen its curves")
 
 
-def read_text(path: Path, what: str = "scenario file") -> str:
-    """The UTF-8 text of a regular file of at most MAX_FILE_BYTES, or one ScenarioError."""
-    where = str(path)
-    if path.is_dir():
-        raise ScenarioError(where, "", f"is a directory; expected a {what}")
-    if path.exists() and not path.is_file():  # a FIFO or a device could block or never end
-        raise ScenarioError(where, "", f"is not a regular file; expected a {what}")
+class FileRefused(ValueError):
+    """A file :func:`read_limited` does not read: ``str()`` says why, in a few words."""
+
+
+def read_limited(path: str | Path, limit: int) -> bytes:
+    """The bytes of the regular file ``path`` if it holds at most ``limit`` bytes, else
+    :class:`FileRefused`. The size is read from the open file (``fstat``) before a byte is
+    read, and at most ``limit + 1`` bytes are read: a huge (or sparse) file costs nothing, one
+    that grows meanwhile is still cut short, and a FIFO or a device is refused without
+    blocking (opened non-blocking). OSError when it cannot be opened or read."""
+    fd = os.open(path, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_BINARY", 0))
     try:
-        with path.open("rb") as f:
-            raw = f.read(MAX_FILE_BYTES + 1)
+        info = os.fstat(fd)
+        if stat.S_ISDIR(info.st_mode):
+            raise FileRefused("is a directory")
+        if not stat.S_ISREG(info.st_mode):
+            raise FileRefused("is not a regular file")
+        if info.st_size > limit:
+            raise FileRefused(f"the file holds {size_text(info.st_size)}")
+        raw = b""
+        while len(raw) <= limit and (chunk := os.read(fd, limit + 1 - len(raw))):
+            raw += chunk
+    finally:
+        os.close(fd)
+    if len(raw) > limit:
+        raise FileRefused(f"the file holds more than {size_text(limit)}")
+    return raw
+
+
+def size_text(n: int) -> str:
+    """A count of bytes as people read it: 512 bytes, 3.2 MiB, 50 GiB."""
+    for unit, scale in (("GiB", 2**30), ("MiB", 2**20), ("KiB", 2**10)):
+        if n >= scale:
+            return f"{n / scale:.3g} {unit}"
+    return f"{n:,} bytes"
+
+
+def read_text(path: Path, what: str = "scenario file") -> str:
+    """The UTF-8 text of a regular file of at most MAX_FILE_BYTES (its size checked before
+    it is read: :func:`read_limited`), or one ScenarioError."""
+    where = str(path)
+    try:
+        raw = read_limited(path, MAX_FILE_BYTES)
+    except FileRefused as exc:
+        size = str(exc) + "; " if str(exc).startswith("the file holds") else ""
+        reason = (f"{size}a {what} may hold at most {size_text(MAX_FILE_BYTES)}" if size
+                  else f"{exc}; expected a {what}")
+        raise ScenarioError(where, "", reason) from None
     except (OSError, ValueError) as exc:  # ValueError: a NUL in the path
         reason = getattr(exc, "strerror", None) or exc
         raise ScenarioError(where, "", f"cannot read the file ({reason})") from None
-    if len(raw) > MAX_FILE_BYTES:
-        raise ScenarioError(where, "", f"the file is larger than {MAX_FILE_BYTES // 2**20} MiB, "
-                            f"the most a {what} may hold")
     try:
         return raw.decode("utf-8").removeprefix("\ufeff")
     except UnicodeDecodeError as exc:

@@ -21,6 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from rgmcad.scene import dominoes
+from rgmcad.scene.loader_checks import FileRefused, read_limited, size_text
 
 CHORD = 5e-4
 """Longest chord (m) standing for a piece of curve."""
@@ -34,13 +35,20 @@ _PHYSICAL = re.compile(r"\s*[0-9.eE+-]+\s*(mm|cm|in|pt|pc|q)\s*$", re.IGNORECASE
 
 def read_points(file: str | Path, element: str | None = None) -> np.ndarray:
     """(k, 2) points (m) of the SVG path, in the drawing's frame with y up. ValueError (one
-    line) if the file cannot be read or holds no such path."""
+    line) if the file cannot be read (its size is checked before it is read) or holds no
+    such path."""
     path = Path(file)
-    if not path.is_file():
-        raise ValueError(f"no SVG file {str(path)!r}")
-    raw = path.read_bytes()[:MAX_SVG_BYTES + 1]
-    if len(raw) > MAX_SVG_BYTES:
-        raise ValueError(f"{path.name}: larger than {MAX_SVG_BYTES // 2**20} MiB")
+    try:
+        raw = read_limited(path, MAX_SVG_BYTES)
+    except FileNotFoundError:
+        raise ValueError(f"no SVG file {str(path)!r}") from None
+    except FileRefused as exc:
+        why = (f"{exc}; a drawing may hold at most {size_text(MAX_SVG_BYTES)}"
+               if str(exc).startswith("the file holds") else f"{exc}; expected an SVG file")
+        raise ValueError(f"{path.name}: {why}") from None
+    except (OSError, ValueError) as exc:
+        raise ValueError(f"{path.name}: cannot read the file "
+                         f"({getattr(exc, 'strerror', None) or exc})") from None
     return _points(raw, element, path.name).copy()
 
 
