@@ -59,6 +59,23 @@ MAX_RUN_OVERLAPS = 100
 """Pairs of dominoes of one run that overlap (deeper than :data:`TOUCHING`): a sharp corner
 makes a few, which the validity check reports; dominoes inside each other make up to half a
 million, each an exact intersection for that check (minutes), and are refused."""
+MAX_SVG_BYTES = 2 * 2**20
+"""Bytes of the SVG drawing of a run (its XML entities expanded)."""
+MAX_SVG_ELEMENTS = 10_000
+"""Groups, paths and other elements of a drawing, each copy a ``<use>`` makes counted."""
+MAX_SVG_DEPTH = 100
+"""Levels of groups and ``<use>`` references in a drawing."""
+MAX_SVG_NUMBERS = 100_000
+"""Numbers of a drawing's path data and transforms, and its closings (``z``), every copy a
+``<use>`` makes counted: the work of reading the drawing (a few seconds at most)."""
+MAX_SVG_CLOSES = 100
+"""Closings (``z``) of one piece of a path (from one ``M`` to the next)."""
+MAX_SVG_LENGTH = 100.0
+"""Metres of the path a run follows."""
+MAX_SVG_REACH = 1000.0
+"""How far (m) any point of the followed path, or a control point of its curves, may lie
+from the drawing's origin (the reach of a position); also the largest width or height of a
+drawing."""
 
 LIMITS = {
     "file size": "2 MiB",
@@ -75,6 +92,13 @@ LIMITS = {
     "polyline points": f"{MAX_POINTS:,}",
     "characters of a name": f"{MAX_NAME:,}",
     "simulation steps (duration / timestep)": f"{MAX_STEPS:,}",
+    "size of a run's SVG drawing": f"{MAX_SVG_BYTES // 2**20} MiB",
+    "elements of a drawing (every <use> copy counted)": f"{MAX_SVG_ELEMENTS:,}",
+    "levels of groups and <use> references in a drawing": f"{MAX_SVG_DEPTH:,}",
+    "numbers of a drawing's paths and transforms": f"{MAX_SVG_NUMBERS:,}",
+    "closings (z) of one piece of a path": f"{MAX_SVG_CLOSES:,}",
+    "length of a drawn path": f"{MAX_SVG_LENGTH:g} m",
+    "reach of a drawn path from the drawing's origin": f"{MAX_SVG_REACH:,g} m",
 }
 
 _REPR = reprlib.Repr()
