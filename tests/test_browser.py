@@ -191,3 +191,63 @@ def test_the_optimisation_report_opens_with_its_replay_and_figures(browser, tmp_
         assert set(_timeline(page)) == set(load_scenario(SIMPLE).events)
         widths = page.evaluate("[...document.querySelectorAll('figure img')].map(i => i.naturalWidth)")
         assert len(widths) == 3 and min(widths) > 300
+
+
+def _drag(page, dy: float, button: str = "left") -> None:
+    """Drag the mouse ``dy`` pixels up (down if negative) from the 3D view's centre."""
+    box = page.locator("#rgmcad-replay canvas").bounding_box()
+    x, y = box["x"] + box["width"] / 2, box["y"] + box["height"] / 2
+    page.mouse.move(x, y)
+    page.mouse.down(button=button)
+    page.mouse.move(x, y - dy, steps=8)
+    page.mouse.up(button=button)
+    page.clock.run_for(50)
+
+
+def _same_view(a: dict, b: dict) -> bool:
+    return all(np.allclose(a[k], b[k], atol=1e-9) for k in ("position", "target", "up"))
+
+
+def test_the_view_stays_above_the_floor_resets_and_names_the_parts(browser, replay):
+    # one page for the camera, its reset and the names: a page load costs a second or more
+    with _open(browser, replay) as (page, _):
+        _viewer(page, "pause()")
+        first = _viewer(page, "camera")
+        floor = _viewer(page, "floor")
+        assert floor == pytest.approx(0.0, abs=1e-9)  # simple's floor plane
+        assert first["up"] == [0, 0, 1] and first["position"][2] > floor
+        # an upward drag of 120 px once put the camera under the floor; orbiting, then
+        # panning (right drag) either way, it stays above the floor, looking at or above it
+        for dy, button in ((120, "left"), (300, "left"), (1000, "left"), (1000, "right"),
+                           (-1000, "right"), (-300, "right")):
+            _viewer(page, "resetView()")
+            _drag(page, dy, button)
+            camera = _viewer(page, "camera")
+            assert camera["position"][2] > floor and camera["target"][2] >= floor - 1e-9, \
+                (dy, button, camera)
+        assert camera != first
+        page.keyboard.press("r")  # the keyboard's reset
+        page.clock.run_for(50)
+        assert _same_view(_viewer(page, "camera"), first)
+        _drag(page, 300)
+        page.click("#rgmcad-replay .reset-view")  # and the button's
+        page.clock.run_for(50)
+        assert _same_view(_viewer(page, "camera"), first)
+
+        # pointing at a part names it: the ball, and a domino of the run by its own name
+        assert _viewer(page, "hovered()") is None
+        for name in ("ball", "run[1]"):
+            page.mouse.move(*_viewer(page, f"screenPoint({name!r})"))
+            page.clock.run_for(50)
+            assert _viewer(page, "hovered()") == name
+            assert page.locator("#rgmcad-replay .hover-name").inner_text() == name
+        # the names toggle: one tag per object, a domino run's once
+        tags = "#rgmcad-replay .name-tags span"
+        assert not page.locator(tags).first.is_visible()
+        page.check("#rgmcad-replay .names")
+        page.clock.run_for(50)
+        assert sorted(page.locator(tags).all_inner_texts()) == ["ball", "run", "track"]
+        assert all(page.locator(tags).nth(i).is_visible() for i in range(3))
+        page.keyboard.press("n")
+        page.clock.run_for(50)
+        assert not _viewer(page, "namesShown()") and not page.locator(tags).first.is_visible()

@@ -183,3 +183,37 @@ def test_meshes_and_ropes_are_drawn_where_the_bodies_are():
                 assert np.linalg.norm(at - pulley, axis=1).min() < 0.003
         finally:
             renderer.close()
+
+
+def test_distinct_parts_of_every_shipped_scenario_have_distinct_colours():
+    # the rule (rgmcad/scene/palette.py): only the dominoes of one run share colours, two
+    # shades of one, alternating; the renderer, the replay and the report read this table
+    from rgmcad.scene.loader import load_scenario
+    from rgmcad.scene.palette import FLOOR, STATIC, runs_of, scene_colours
+
+    for path in sorted((ROOT / "scenarios").glob("*.toml")):
+        scenario = load_scenario(path)
+        scene = scene_of(scenario)
+        runs = runs_of(scenario)
+        colours = scene_colours(scene, runs)
+        solid = [b for b in scene.bodies.values() if not b.plane]
+        assert set(colours) == {b.name for b in solid}
+        owner: dict[tuple, str] = {}  # colour -> the object, or the run, drawn in it
+        for body in solid:
+            who = runs.get(body.object, body.object)
+            assert owner.setdefault(colours[body.name], who) == who, (path.name, body.name)
+        assert FLOOR not in colours.values()
+        for run, dominoes in scenario.runs.items():
+            shades = [colours[d] for d in dominoes]
+            assert len(set(shades)) == min(len(dominoes), 2), (path.name, run)
+            assert all(a != b for a, b in zip(shades, shades[1:], strict=False))
+        static = [colours[b.name] for b in solid if b.static and b.name == b.object]
+        assert static[:len(STATIC)] == list(STATIC[:len(static)])  # muted tones, in turn
+
+
+def test_the_palette_comes_round_in_new_shades_for_any_number_of_parts():
+    from rgmcad.scene.palette import MOVING, object_colours
+
+    many = object_colours([(f"o{i}", i % 3 == 0, None) for i in range(600)])
+    assert len(set(many.values())) == 600  # 400 moving, 200 static: no colour twice
+    assert list(many.values())[1:3] == list(MOVING[:2])

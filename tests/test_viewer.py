@@ -241,3 +241,29 @@ def test_an_or_join_reads_as_one_in_the_replay(tmp_path, capsys):
                  "--html", str(out), "-q"]) == 0
     text = out.read_text()
     assert "after the first of ball_in_box or cylinder_in_box" in text
+
+
+def test_a_part_has_one_colour_in_the_png_the_video_the_replay_and_the_report(
+        optimized, tmp_path, monkeypatch):
+    # each picture once drew its own colours (a ball and a domino shared a pink)
+    from rgmcad.sim.render import Renderer
+
+    drawn = []  # the colour table of every renderer made: the PNG's, then the video's
+    close = Renderer.close
+    monkeypatch.setattr(Renderer, "close", lambda self: (drawn.append(self.colours),
+                                                         close(self)))
+    size = ["--width", "48", "--height", "32"]
+    assert main(["render", SIMPLE, "--out", str(tmp_path / "s.png"), *size]) == 0
+    assert main(["simulate", SIMPLE, "--video", str(tmp_path / "s.gif"), *size, "-q"]) == 0
+    scenario, values, parts = _layout(SIMPLE)
+    replay = replay_payload(record_replay(scenario, values, parts)[1])
+    run, _ = optimized
+    report = json.loads(re.search(r'id="rgmcad-replay-data">(.*?)</script>',
+                                  (run / "report.html").read_text())[1])
+    png, video = ({name: [round(c, 3) for c in rgb] for name, rgb in t.items()} for t in drawn)
+    for page in (replay, report):
+        assert {b["name"]: b["color"] for b in page["bodies"]} == png == video
+    assert png["ball"] != png["run[0]"]
+    # the viewer's labels: an object's name, a domino run's name for its dominoes
+    assert [b["label"] for b in replay["bodies"]] == ["ball", "track", "run", "run", "run"]
+    assert replay["plane_colors"] == [[0.871, 0.859, 0.831]]  # the floor, grey

@@ -12,7 +12,8 @@ everywhere, and colours do not change as parts move):
 - a body of an object other than its main one (a lever's fixed axle) is a darker shade of its
   object's colour;
 - past the end of a list, the colours come round again darker, then lighter, then darker
-  still, and so on: distinct objects never share a colour unless they are dominoes of one run;
+  still (three times each way), and a colour some part has already is nudged to the next free
+  one: distinct objects never share a colour unless they are dominoes of one run;
 - infinite planes are grey: :data:`FLOOR` when horizontal, :data:`BOARD` otherwise.
 """
 
@@ -51,31 +52,43 @@ def _nth(colours: tuple[RGB, ...], k: int) -> RGB:
     base, lap = colours[k % len(colours)], k // len(colours)
     if lap == 0:
         return base
-    step = (lap + 1) // 2
-    return _mix(base, _BLACK if lap % 2 else _WHITE, min(0.22 * step, 0.66) + 0.001 * lap)
+    return _mix(base, _BLACK if lap % 2 else _WHITE, min(0.22 * ((lap + 1) // 2), 0.66))
+
+
+def _unused(colour: RGB, used: set[RGB]) -> RGB:
+    """``colour``, or, when a part has it already (hundreds of parts come round to the same
+    shades), the next free one in steps of 0.001 (blue first): every part its own colour."""
+    n = sum(round(c * 1000) * 1001 ** i for i, c in enumerate(reversed(colour)))
+    while colour in used:
+        n = (n + 1) % 1001 ** 3
+        colour = (n // 1001 ** 2 / 1000, n // 1001 % 1001 / 1000, n % 1001 / 1000)
+    used.add(colour)
+    return colour
 
 
 def object_colours(objects: Iterable[tuple[str, bool, str | None]]) -> dict[str, RGB]:
     """Object name -> colour, for ``(name, static, run)`` of each object in the scene's order
     (``run``: the domino run it belongs to, or None)."""
     out: dict[str, RGB] = {}
-    runs: dict[str, tuple[RGB, int]] = {}  # run -> its colour, dominoes coloured so far
+    used: set[RGB] = set()
+    runs: dict[str, list] = {}  # run -> [its colour, its lighter shade, dominoes so far]
     moving = static = 0
     for name, fixed, run in objects:
         if name in out:
             continue
         if run is not None and not fixed:
             if run not in runs:
-                runs[run] = (_nth(MOVING, moving), 0)
+                colour = _unused(_nth(MOVING, moving), used)
+                runs[run] = [colour, _unused(_mix(colour, _WHITE, 0.3), used), 0]
                 moving += 1
-            colour, n = runs[run]
-            runs[run] = (colour, n + 1)
-            out[name] = _mix(colour, _WHITE, 0.3) if n % 2 else colour
+            shades = runs[run]
+            out[name] = shades[shades[2] % 2]
+            shades[2] += 1
         elif fixed:
-            out[name] = _nth(STATIC, static)
+            out[name] = _unused(_nth(STATIC, static), used)
             static += 1
         else:
-            out[name] = _nth(MOVING, moving)
+            out[name] = _unused(_nth(MOVING, moving), used)
             moving += 1
     return out
 
@@ -88,8 +101,12 @@ def scene_colours(scene, runs: Mapping[str, str] | None = None) -> dict[str, RGB
     main = {b.object: b.static for b in solid if b.name == b.object}
     colours = object_colours((b.object, main.get(b.object, b.static), runs.get(b.object))
                              for b in solid)
-    return {b.name: colours[b.object] if b.name == b.object else _mix(colours[b.object],
-                                                                       _BLACK, 0.35)
+    used = set(colours.values())
+    darker: dict[str, RGB] = {}  # object -> the colour of its other bodies
+    for b in solid:
+        if b.name != b.object and b.object not in darker:
+            darker[b.object] = _unused(_mix(colours[b.object], _BLACK, 0.35), used)
+    return {b.name: colours[b.object] if b.name == b.object else darker[b.object]
             for b in solid}
 
 
