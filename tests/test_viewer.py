@@ -256,7 +256,8 @@ def test_a_part_has_one_colour_in_the_png_the_video_the_replay_and_the_report(
     assert main(["render", SIMPLE, "--out", str(tmp_path / "s.png"), *size]) == 0
     assert main(["simulate", SIMPLE, "--video", str(tmp_path / "s.gif"), *size, "-q"]) == 0
     scenario, values, parts = _layout(SIMPLE)
-    replay = replay_payload(record_replay(scenario, values, parts)[1])
+    recorded = record_replay(scenario, values, parts)[1]
+    replay = replay_payload(recorded)
     run, _ = optimized
     report = json.loads(re.search(r'id="rgmcad-replay-data">(.*?)</script>',
                                   (run / "report.html").read_text())[1])
@@ -266,4 +267,6 @@ def test_a_part_has_one_colour_in_the_png_the_video_the_replay_and_the_report(
     assert png["ball"] != png["run[0]"]
     # the viewer's labels: an object's name, a domino run's name for its dominoes
     assert [b["label"] for b in replay["bodies"]] == ["ball", "track", "run", "run", "run"]
+    unlabelled = replace(recorded, labels=None)  # a replay made elsewhere (rgmcad live)
+    assert replay_payload(unlabelled)["bodies"] == replay["bodies"]
     assert replay["plane_colors"] == [[0.871, 0.859, 0.831]]  # the floor, grey

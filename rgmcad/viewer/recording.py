@@ -12,6 +12,7 @@ little-endian and base64 encoded.
 from __future__ import annotations
 
 import base64
+import re
 from collections.abc import Mapping
 from dataclasses import dataclass
 
@@ -57,7 +58,7 @@ class Replay:
     outcome : str
     labels : tuple of str, optional
         What names each body in the viewer's labels: its object, or its domino run (labelled
-        once, at its first domino). None: each body by its own name.
+        once, at its first domino). None: read from the body's name.
     """
 
     title: str
@@ -168,8 +169,10 @@ def replay_payload(replay: Replay) -> dict:
     pos = np.round((track[..., :3, 3] - centre) / half * _Q)
     quat = np.round(_quaternions(track[..., :3, :3]) * _Q)
     first = replay.poses[0]
+    # without labels, a body's name up to a '.' (a lever's axle) or '[' (a run's domino):
+    # object and run names hold neither
     labels = replay.labels if replay.labels and len(replay.labels) == len(replay.bodies) \
-        else replay.bodies
+        else [re.split(r"[.[]", n, maxsplit=1)[0] for n in replay.bodies]
     meshes = []
     for vertices, faces in replay.meshes:
         index = "u2" if len(vertices) < 65536 else "u4"
