@@ -15,6 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
+from rgmcad.files import naming
 from rgmcad.parts.family import MAIN
 from rgmcad.scene.bodies import Scene
 
@@ -98,13 +99,14 @@ def export_layout(scenario, scene: Scene, path: Path) -> Path:
         colour = cq.Color(*(_STATIC if body.static else _MOVING))
         assembly.add(solid, name=name, loc=_location(body.pose), color=colour)
     partial = path.with_name(f".{path.stem}.partial{suffix}")  # renamed when complete
-    if suffix == ".glb":
-        _mesh(solids.values())
-        # the solids keep that triangulation: CadQuery meshes again only where the existing one
-        # is coarser than asked, and its tolerance is relative to each face's size
-        assembly.export(str(partial), tolerance=1.0, angularTolerance=1.0)
-    else:
-        assembly.export(str(partial), exportType="STEP", unit="M", outputUnit="MM")
-    os.replace(partial, path)
+    with naming(path):
+        if suffix == ".glb":
+            _mesh(solids.values())
+            # the solids keep that triangulation: CadQuery meshes again only where the existing
+            # one is coarser than asked, and its tolerance is relative to each face's size
+            assembly.export(str(partial), tolerance=1.0, angularTolerance=1.0)
+        else:
+            assembly.export(str(partial), exportType="STEP", unit="M", outputUnit="MM")
+        os.replace(partial, path)
     log.info("exported %d bodies to %s", len(assembly.children), path)
     return path

@@ -14,6 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
+from rgmcad.files import naming
 from rgmcad.printing.drawing import Drawing, TextItem
 from rgmcad.printing.labels import font_name, pdf_safe, text_width, wrap
 from rgmcad.printing.plane import PlaneFrame
@@ -378,5 +379,6 @@ def write_pdf(path: Path, title: str, drawing: Drawing, parts, frame: PlaneFrame
     for info in sheets:
         tile_page(pdf, drawing, info, seams, grid, title, paper, frame,
                   empty=info.label in empty, clear=clear)
-    pdf.save()
+    with naming(path):
+        pdf.save()
     return pdf.pages

@@ -11,6 +11,7 @@ from xml.sax.saxutils import escape, quoteattr
 
 import numpy as np
 
+from rgmcad.files import naming
 from rgmcad.printing.drawing import Drawing, TextItem
 from rgmcad.printing.plane import PlaneFrame
 
@@ -81,4 +82,5 @@ def write_svg(path: Path, drawing: Drawing, title: str, frame: PlaneFrame) -> No
                 attrs.append(f'stroke-dasharray="{" ".join(f"{v:g}" for v in it.dash)}"')
         out.append(f"<path {' '.join(attrs)}/>")
     out.append("</svg>")
-    path.write_text("\n".join(out) + "\n", encoding="utf-8")
+    with naming(path):
+        path.write_text("\n".join(out) + "\n", encoding="utf-8")

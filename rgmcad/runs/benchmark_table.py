@@ -8,6 +8,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from rgmcad.files import naming
+
 __all__ = ["DETECT", "build_table", "table_markdown", "plot_benchmark"]
 
 
@@ -170,5 +172,6 @@ def plot_benchmark(table: dict, path) -> None:
     ax.set_title(f"{table['scenario']}: B = {table['budget_sims']}, "
                  f"{len(table['seeds'])} trial(s)", fontsize=10)
     fig.tight_layout()
-    fig.savefig(path)
+    with naming(path):
+        fig.savefig(path)
     plt.close(fig)

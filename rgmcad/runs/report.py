@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from rgmcad.runs.hand_text import hand_headline, hand_markdown
-from rgmcad.runs.robustness import close_in_warning, failures_line, two_rates
+from rgmcad.runs.robustness import close_in_warning, failures_line, save_figure, two_rates
 from rgmcad.runs.tolerance_check import narrowed_note, tolerance_header
 from rgmcad.scene.perturbation import PhysicsRanges
 
@@ -344,7 +344,7 @@ def plot_slice(scenario, model, x, influence, path: Path, validity=None) -> bool
         ax.legend(loc="upper right", fontsize=8)
     ax.set_title(f"{scenario.name}: success through the layout (others held)", fontsize=10)
     fig.tight_layout()
-    fig.savefig(path)
+    save_figure(fig, path)
     plt.close(fig)
     return len(x) > 1 and against
 
@@ -385,7 +385,7 @@ def plot_robustness(scenario, model, x, path: Path, errors=ERROR_GRID) -> np.nda
     ax.grid(alpha=0.3)
     ax.set_title(f"{scenario.name}: success when parts are placed by hand", fontsize=10)
     fig.tight_layout()
-    fig.savefig(path)
+    save_figure(fig, path)
     plt.close(fig)
     return curve
 
@@ -416,7 +416,7 @@ def plot_progress(result, path: Path) -> None:
     ax.legend(fontsize=8, loc="upper left")
     ax.set_title("exploration and active learning: whole-chain successes", fontsize=10)
     fig.tight_layout()
-    fig.savefig(path)
+    save_figure(fig, path)
     plt.close(fig)
 
 

@@ -49,6 +49,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from rgmcad.files import naming
 from rgmcad.geometry import dot
 from rgmcad.runs.problem import SimRecord, simulate_layout_task
 from rgmcad.scene.perturbation import PhysicsDraw, PhysicsRanges
@@ -416,5 +417,11 @@ def save_plot(fig, ax, path, title: str = "", legend: str = "best") -> None:
     if title:
         ax.set_title(title, fontsize=10)
     fig.tight_layout()
-    fig.savefig(path)
+    save_figure(fig, path)
     plt.close(fig)
+
+
+def save_figure(fig, path) -> None:
+    """``fig.savefig(path)``; a write that fails (a full disk) names ``path``."""
+    with naming(path):
+        fig.savefig(path)
