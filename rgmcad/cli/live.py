@@ -116,5 +116,6 @@ def run(args) -> int:
     try:
         serve(options, ready)
     except KeyboardInterrupt:
-        say("stopped")
+        pass
+    say("stopped")
     return 0

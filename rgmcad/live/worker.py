@@ -15,6 +15,7 @@ a few physics steps (a step hook checks the counter), answering ``{"superseded":
 
 from __future__ import annotations
 
+import atexit
 import functools
 import itertools
 import logging
@@ -73,6 +74,18 @@ def init(generation, parent: int, level: int = logging.WARNING) -> None:
         os._exit(0)
 
     threading.Thread(target=watch, name="rgmcad-live-parent", daemon=True).start()
+    atexit.register(_close)
+
+
+def _close() -> None:
+    """Drop the engine and the derived data before the interpreter goes (manifold3d's
+    bindings complain of solids still alive at exit)."""
+    loaded, _state["loaded"] = _state["loaded"], None
+    if loaded is not None:
+        loaded.cache.close()
+    if _state["engine"] is not None:
+        _state["engine"].close()
+        _state["engine"] = None
 
 
 def hello() -> int:
