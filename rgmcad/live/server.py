@@ -156,7 +156,9 @@ def make_app(session: Session, local: bool) -> web.Application:
 def serve(options: LiveOptions, ready: Callable[[str], None]) -> None:
     """Serve the live page of ``options.scenario`` until Ctrl-C (KeyboardInterrupt, raised
     once everything has stopped: the worker, the watcher, the pages) or SIGTERM (returns).
-    ``ready(address)`` is called once the page can be opened."""
+    ``ready(address)`` is called once the page can be opened. The worker is a spawned
+    process, so a script calling this runs it under ``if __name__ == "__main__":``, as any
+    user of :mod:`multiprocessing` (the ``rgmcad`` command does)."""
     sock = bind(options.host, options.port)
     try:
         asyncio.run(_serve(options, sock, ready))
