@@ -60,9 +60,10 @@ def run(args) -> int:
     for name, mapping in scenario.layouts.items():
         values = values_from_mapping(scenario, mapping)
         validity = check_validity(make_scene(scenario, values, parts))
+        shown, more = validity.shown()
         problems = [f"{o.first} by {o.depth * 1000:.2f} mm" if o.first.startswith("rope ")
                     else f"{o.first}/{o.second} overlap {o.depth * 1000:.2f} mm"
-                    for o in validity.overlaps] + _outside(scenario, values)
+                    for o in shown] + [more] * bool(more) + _outside(scenario, values)
         bad += bool(problems)
         say(f"  {name}: " + ("valid, inside the design space" if not problems
                              else "INVALID: " + "; ".join(problems)))

@@ -24,7 +24,13 @@ from rgmcad.sim.validity import (
     _manifold,
     _pair_penetration,
     _plane_depth,
+    check_validity,
 )
+
+MAX_VECTOR_PAIRS = 20_000
+"""Pairs of solids (200 solids) past which layouts are tested one scene at a time by
+:func:`check_validity`, whose work is bounded: the vectorised tests hold every pair for every
+layout (two crossing runs of 300 wide dominoes: 14 s for one layout, of 1,000: minutes)."""
 
 
 def _box_pieces(built: BuiltBody, cache: PartCache) -> tuple[np.ndarray, np.ndarray] | None:
@@ -64,7 +70,8 @@ class LayoutValidity:
     bounds and the box pruning are vectorised over layouts; only the pairs whose oriented boxes
     overlap get an exact test, and a layout's tests stop at its first penetration. A sampler
     tests thousands of random layouts per run, most of them invalid: this is several times
-    faster than one scene at a time (figures in docs/decisions.md).
+    faster than one scene at a time (figures in docs/decisions.md). Past MAX_VECTOR_PAIRS pairs
+    of solids, one scene at a time by :func:`check_validity` after all.
 
     Parameters
     ----------
@@ -94,6 +101,10 @@ class LayoutValidity:
         hi = np.array([b.built.bbox[1] for b in self.solids], float).reshape(-1, 3)
         self.local_centres, self.halves = (lo + hi) / 2, (hi - lo) / 2
         n = len(self.solids)
+        self.parts = parts
+        self.one_by_one = n * (n - 1) // 2 > MAX_VECTOR_PAIRS
+        if self.one_by_one:
+            return
         pairs = [(i, j) for i in range(n) for j in range(i + 1, n)
                  if frozenset((self.solids[i].name, self.solids[j].name)) not in excluded]
         # cheapest exact tests first (any order gives the same answer): balls are analytic,
@@ -129,6 +140,12 @@ class LayoutValidity:
         from rgmcad.scene.design_space import world_poses_many
 
         values = np.atleast_2d(np.asarray(values, float))
+        if self.one_by_one:
+            from rgmcad.scene.bodies import make_scene
+
+            return np.array([check_validity(make_scene(self.scenario, v, self.parts),
+                                            self.tolerance, True, self.cache).valid
+                             for v in values], dtype=bool)
         m, n, tol = len(values), len(self.solids), self.tolerance
         valid = np.ones(m, dtype=bool)
         if n == 0 or m == 0:
@@ -173,9 +190,13 @@ class LayoutValidity:
         rows, ks = rows[~apart], ks[~apart]
         exact = np.ones(len(rows), dtype=bool)
         for k in np.unique(ks):
+            if not valid.any():
+                break
             if self.shortcuts[k] is None:
                 continue
-            at = np.flatnonzero(ks == k)
+            at = np.flatnonzero((ks == k) & valid[rows])  # a layout found invalid is done
+            if len(at) == 0:
+                continue
             kind, *args = self.shortcuts[k]
             if kind == "ball":  # args: the ball's and the other body's solid indices
                 penetrates = self._ball_depths(*args, poses[rows[at]]) > tol

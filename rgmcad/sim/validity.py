@@ -16,10 +16,16 @@ vectorised over layouts.
 The layout is valid when no penetration is deeper than ``tolerance`` (default 0.2 mm): bodies
 that touch are valid, a 0.5 mm overlap is not. The paper summed Bullet's contact depths against
 1 mm, which let thin parts overlap by most of their thickness.
+
+The work is bounded before it starts: past MAX_EXACT_PAIRS pairs whose boxes overlap (two runs
+of wide dominoes crossing each other make up to a million), the test stops at its
+ENOUGH_OVERLAPS-th penetration (one decides the verdict) and counts the pairs it left
+untested; below it, every penetration is listed, as a hand placing parts again needs.
 """
 
 from __future__ import annotations
 
+from collections.abc import Iterator
 from dataclasses import dataclass
 
 import manifold3d
@@ -35,6 +41,13 @@ from rgmcad.sim.rope_validity import RopePath, rope_crossings
 
 TOLERANCE = 2e-4
 """Deepest penetration (m) still counted as touching."""
+MAX_EXACT_PAIRS = 1000
+"""Pairs whose boxes overlap past which the test stops at ENOUGH_OVERLAPS penetrations (the
+shipped scenarios have at most 23, long_chain's, in their layouts and 200 random ones each)."""
+ENOUGH_OVERLAPS = 20
+SHOWN = 5
+"""Penetrations a report lists (the deepest; :meth:`Validity.shown`)."""
+_CHUNK = 4096  # pairs per separating-axis test: bounded memory (15 axes x 3 floats each)
 
 
 @dataclass(frozen=True)
@@ -50,11 +63,27 @@ class Validity:
     valid: bool
     overlaps: tuple[Overlap, ...]  # every pair that penetrates deeper than the tolerance
     pairs_tested: int  # exact tests after bounding-box pruning
+    untested: int = 0  # pairs whose boxes overlap left once the verdict was known (stop_at_first,
+    # or ENOUGH_OVERLAPS found among more than MAX_EXACT_PAIRS)
 
     @property
     def penetration(self) -> float:
         """Sum of the penetration depths beyond the tolerance (m); 0 for a valid layout."""
         return float(sum(o.depth for o in self.overlaps))
+
+    def shown(self, count: int = SHOWN) -> tuple[tuple[Overlap, ...], str | None]:
+        """What a report lists: every penetration when there are at most ``count`` (in the
+        order found), else the ``count`` deepest; and a line for the rest (None: nothing
+        left out), e.g. ``"and 15 more pairs overlap; 89,980 more pairs whose boxes overlap
+        were not tested"``."""
+        if len(self.overlaps) <= count and not self.untested:
+            return self.overlaps, None
+        shown = tuple(sorted(self.overlaps, key=lambda o: -o.depth)[:count])
+        more = [f"and {len(self.overlaps) - len(shown):,} more pairs overlap"] * (
+            len(self.overlaps) > len(shown))
+        more += [f"{self.untested:,} more pairs whose boxes overlap were not tested"] * bool(
+            self.untested)
+        return shown, "; ".join(more)
 
 
 def _manifold(built: BuiltBody, cache: PartCache) -> manifold3d.Manifold:
@@ -157,6 +186,30 @@ def thickness(points: np.ndarray) -> float:
     return float(proj.max() - proj.min())
 
 
+def _box_pairs(solids, centres, halves, rot, excluded, tolerance) -> tuple[np.ndarray, np.ndarray]:
+    """``(first, second)``: the pairs ``i < j`` of solids that may collide (not jointed) whose
+    world-aligned boxes overlap by more than ``tolerance``, row by row."""
+    reach = matmul(np.abs(rot), halves[..., None])  # (n, 3, 1): half extents of the world box
+    lo = centres - reach[..., 0] + tolerance / 2
+    hi = centres + reach[..., 0] - tolerance / 2
+    hits = np.all((lo[:, None, :] < hi[None, :, :]) & (lo[None, :, :] < hi[:, None, :]), axis=2)
+    index = {b.name: k for k, b in enumerate(solids)}
+    for pair in excluded:
+        ks = [index[name] for name in pair if name in index]
+        if len(ks) == 2:
+            hits[ks[0], ks[1]] = hits[ks[1], ks[0]] = False
+    return np.nonzero(np.triu(hits, k=1))
+
+
+def _apart_pruned(centres, halves, rot, first, second, tolerance) -> Iterator[int]:
+    """The positions in ``(first, second)`` of the pairs whose oriented boxes overlap, in
+    order, tested _CHUNK pairs at a time as they are asked for."""
+    for start in range(0, len(first), _CHUNK):
+        end = start + _CHUNK
+        apart = _boxes_apart(centres, halves, rot, first[start:end], second[start:end], tolerance)
+        yield from (start + np.flatnonzero(~apart)).tolist()
+
+
 def check_validity(
     scene: Scene, tolerance: float = TOLERANCE, stop_at_first: bool = False,
     cache: PartCache | None = None,
@@ -195,32 +248,26 @@ def check_validity(
                 if stop_at_first:
                     return Validity(False, tuple(overlaps), tested)
 
+    untested = 0
     if len(solids) > 1:
-        reach = matmul(np.abs(rot), halves[..., None])  # (n, 3, 1): half extents of the world box
-        lo = centres - reach[..., 0] + tolerance / 2
-        hi = centres + reach[..., 0] - tolerance / 2
-        hits = np.all((lo[:, None, :] < hi[None, :, :]) & (lo[None, :, :] < hi[:, None, :]), axis=2)
-        pairs = [(i, j) for i, j in zip(*np.nonzero(np.triu(hits, k=1)), strict=True)
-                 if frozenset((solids[i].name, solids[j].name)) not in excluded]
-        if pairs:
-            first, second = np.array(pairs).T
-            apart = _boxes_apart(centres, halves, rot, first, second, tolerance)
-            pairs = [p for p, skip in zip(pairs, apart, strict=True) if not skip]
-        for i, j in pairs:
-            a, b = solids[i], solids[j]
+        first, second = _box_pairs(solids, centres, halves, rot, excluded, tolerance)
+        enough = ENOUGH_OVERLAPS if len(first) > MAX_EXACT_PAIRS else None
+        for at in _apart_pruned(centres, halves, rot, first, second, tolerance):
+            a, b = solids[first[at]], solids[second[at]]
             tested += 1
             depth, volume = _pair_penetration(a.built, a.pose, b.built, b.pose, cache)
             if depth > tolerance:
                 overlaps.append(Overlap(a.name, b.name, depth, volume))
-                if stop_at_first:
+                if stop_at_first or (enough is not None and len(overlaps) >= enough):
+                    untested = len(first) - at - 1
                     break
     overlaps.extend(Overlap(f"rope {r.name} (too short)", "its path", r.excess, 0.0)
                     for r in scene.ropes if r.excess > tolerance)  # depth: missing length
-    if scene.ropes and not (stop_at_first and overlaps):
+    if scene.ropes and not ((stop_at_first or untested) and overlaps):
         bodies = list(scene.bodies.values())
         overlaps.extend(Overlap(f"rope {c.rope} (through {c.body})", c.body, c.depth, 0.0)
                         for c in rope_crossings(
                             bodies, np.stack([b.pose for b in bodies])[None],
                             [RopePath(r.name, r.objects, r.points[None]) for r in scene.ropes],
                             tolerance, cache))
-    return Validity(not overlaps, tuple(overlaps), tested)
+    return Validity(not overlaps, tuple(overlaps), tested, untested)
