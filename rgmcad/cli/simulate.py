@@ -101,11 +101,9 @@ def run(args) -> int:
         f"{physics.ranges.describe()}"))
     if result.outcome is Outcome.INVALID:
         shown, more = result.validity.shown()
-        for o in shown:
-            say(f"  {o.first} by {o.depth * 1000:.2f} mm" if o.first.startswith("rope ")
-                else f"  {o.first} and {o.second} overlap by {o.depth * 1000:.2f} mm")
-        if more:
-            say(f"  {more}")
+        say("\n".join([f"  {o.first} by {o.depth * 1000:.2f} mm" if o.first.startswith("rope ")
+                       else f"  {o.first} and {o.second} overlap by {o.depth * 1000:.2f} mm"
+                       for o in shown] + [f"  {more}"] * bool(more)))
     else:
         rows = [(e.name, e.state, "" if e.time is None else f"{e.time:.3f}")
                 for e in sorted(result.events, key=lambda e: (e.time is None, e.time or 0))]
