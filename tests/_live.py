@@ -89,7 +89,7 @@ class Server:
                     states.append(await ws.receive_json(timeout=timeout))
                 return states
 
-        return asyncio.run(go())
+        return asyncio.run(asyncio.wait_for(go(), timeout))
 
     def stop(self, timeout: float = 20) -> tuple[int, str, str]:
         """Ctrl-C; (exit status, stdout, stderr)."""

@@ -139,6 +139,19 @@ def test_sliders_sweep_and_save_over_the_websocket(fresh, tmp_path):
     assert s["notice"].startswith("not saved: a layout's name")
 
 
+def test_messages_the_server_does_not_take_change_nothing(fresh):
+    before = fresh.state()
+    bad = [{"type": "set", "name": ["track.x"], "value": 1}, {"type": "set", "name": "track.x",
+           "value": True}, {"type": "set", "name": "track.x", "value": "1e999"},
+           {"type": "set", "name": "nope", "value": 1}, {"type": "layout", "name": "/etc/passwd"},
+           {"type": "compare", "name": {"a": 1}}, {"type": "sweep", "name": None}, [1, 2], "x",
+           None, {"type": "save", "name": 7}, {}]
+    states = fresh.talk(bad, until=lambda s: "{}" in s["notice"])  # the last one
+    assert all(s["notice"].startswith("ignored a message") for s in states[1:])
+    after = fresh.state()
+    assert after["generation"] == before["generation"] and after["view"] == before["view"]
+
+
 def test_every_open_page_gets_every_update(fresh):
     import asyncio
 

@@ -199,6 +199,8 @@ class Session:
         kind = message.get("type") if isinstance(message, dict) else None
         free = {f["name"]: f for f in (self.info or {}).get("free", [])}
         name = message.get("name") if kind else None
+        if not (name is None or isinstance(name, str)):
+            kind = None  # a list or a table is no name
         if kind == "set" and name in free and _number(message.get("value")):
             self.changes[name] = real(free[name]["unit"], message["value"])
             self.refresh()
