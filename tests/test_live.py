@@ -301,6 +301,7 @@ def test_side_by_side_is_one_replay_with_one_clock():
     assert len(both.bodies) == len(a.bodies) + len(b.bodies) and len(both.times) == len(b.times)
     assert both.bodies[0] == f"A: {a.bodies[0]}" and both.events[-1]["name"].startswith("B: ")
     assert len(both.planes) == 1  # the floor, once
+    assert both.labels[0] == f"A: {a.labels[0]}" and both.labels[-1] == "B: run"  # its tags
     np.testing.assert_array_equal(both.poses[-1, :len(a.bodies)], a.poses[-1])  # A holds
     moved = both.poses[0, len(a.bodies):, :3, 3] - b.poses[0, :, :3, 3]
     assert np.allclose(moved[:, 1:], 0) and np.all(moved[:, 0] > 0.1)  # B beside A, along x

@@ -71,7 +71,7 @@ def still_replay(scenario, scene, validity, title: str) -> Replay:
     because its parts overlap), the overlapping bodies red and the others grey."""
     hot = {name for o in validity.overlaps for name in (o.first, o.second)}
     keys: dict[int, int] = {}
-    names, meshes, mesh_of, static, colors, planes, poses = [], [], [], [], [], [], []
+    names, meshes, mesh_of, static, colors, planes, poses, labels = [], [], [], [], [], [], [], []
     for name, body in scene.bodies.items():
         if body.plane:
             planes.append(np.asarray(body.pose, float))
@@ -85,6 +85,7 @@ def still_replay(scenario, scene, validity, title: str) -> Replay:
         static.append(body.static)
         colors.append(_OVERLAP if name in hot else _CLEAR_STATIC if body.static else _CLEAR_MOVING)
         poses.append(np.asarray(body.pose, float))
+        labels.append(scenario.objects[body.object].run or body.object)  # as the viewer tags
     events = tuple({"name": name, "after": list(spec.after), "join": spec.join,
                     "state": EventState.ASLEEP.value, "time": None, "description": spec.description}
                    for name, spec in scenario.events.items())
@@ -92,7 +93,7 @@ def still_replay(scenario, scene, validity, title: str) -> Replay:
                   mesh_of=np.asarray(mesh_of, int), static=np.asarray(static, bool),
                   colors=np.asarray(colors, float), planes=tuple(planes),
                   times=np.zeros(1), poses=np.stack(poses)[None],
-                  events=events, outcome=Outcome.INVALID.value)
+                  events=events, outcome=Outcome.INVALID.value, labels=tuple(labels))
 
 
 def _extent(replay: Replay, axis: np.ndarray) -> tuple[float, float]:
@@ -142,6 +143,8 @@ def side_by_side(first: Replay, second: Replay, labels: tuple[str, str], title: 
             planes.append(moved)
     a, b = labels
     both = first.outcome == second.outcome == Outcome.SUCCESS.value
+    tags = None if first.labels is None or second.labels is None else (
+        tuple(f"{a}: {t}" for t in first.labels) + tuple(f"{b}: {t}" for t in second.labels))
     return Replay(
         title=title, bodies=tuple(f"{a}: {n}" for n in first.bodies)
         + tuple(f"{b}: {n}" for n in second.bodies),
@@ -152,7 +155,7 @@ def side_by_side(first: Replay, second: Replay, labels: tuple[str, str], title: 
         times=np.asarray(times, float),
         poses=np.concatenate([frames(first, None), frames(second, shift)], axis=1),
         events=named(first, a) + named(second, b),
-        outcome=Outcome.SUCCESS.value if both else Outcome.FAILURE.value)
+        outcome=Outcome.SUCCESS.value if both else Outcome.FAILURE.value, labels=tags)
 
 
 def viewer_html(replay: Replay, note: str = "") -> str:
