@@ -30,7 +30,8 @@ class Server:
 
     def __init__(self, folder: Path, *args: str, scenario: Path = SIMPLE, timeout: float = 60):
         self.file = folder / scenario.name
-        shutil.copy(scenario, self.file)
+        if self.file != scenario:
+            shutil.copy(scenario, self.file)
         self.original = self.file.read_text()
         self.proc = subprocess.Popen(
             [sys.executable, "-m", "rgmcad.cli", "live", str(self.file), "--no-browser",

@@ -204,6 +204,34 @@ def test_a_comparison_and_a_dead_worker(fresh):
     assert s["error"] is None and s["main"]["outcome"] == "success"
 
 
+@pytest.mark.slow  # 3-5 s: a server of its own
+def test_a_saved_drawing_moves_the_run_that_follows_it(tmp_path):
+    def drawing(length_mm):
+        return ('<svg xmlns="http://www.w3.org/2000/svg" width="300mm" height="200mm" '
+                f'viewBox="0 0 300 200"><path d="M 0 100 L {length_mm} 100"/></svg>')
+
+    (tmp_path / "line.svg").write_text(drawing(100))
+    scenario = tmp_path / "drawn.toml"
+    scenario.write_text("""[objects.floor]\npart = "plane"\n[runs.run]
+domino = { thickness = 0.005, width = 0.02, height = 0.04 }
+path = { kind = "svg", file = "line.svg", spacing = 0.02 }\ntilt = 10\nmass = 0.03
+free = { x = [-0.05, 0.05] }\n[events.falls]\ntype = "toppling"\nbody = "run[-1]"\nangle = 45
+""")
+    s = Server(tmp_path, scenario=scenario)
+    try:
+        def dominoes() -> int:
+            status, page = _get(s, "/view")
+            return page.decode().count('"name":"run[')
+
+        assert dominoes() == 6
+        before = s.state()["generation"]
+        (tmp_path / "line.svg").write_text(drawing(200))
+        s.wait(lambda state: state["generation"] > before and not state["busy"])
+        assert dominoes() == 11
+    finally:
+        s.stop()
+
+
 def test_a_port_in_use_or_a_bad_scenario_is_one_line_before_serving(tmp_path):
     with socket.create_server(("127.0.0.1", 0)) as taken:
         port = str(taken.getsockname()[1])
