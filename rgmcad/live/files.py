@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import json
 import os
-import tempfile
 import time
 import tomllib
 from collections.abc import Callable
@@ -26,6 +25,8 @@ from watchdog.events import (
     FileSystemEventHandler,
 )
 from watchdog.observers import Observer
+
+from rgmcad.files import write_json_atomic
 
 __all__ = ["watched_files", "Watcher", "read_saved", "write_saved"]
 
@@ -130,13 +131,5 @@ def write_saved(path: str | Path, name: str, document: dict) -> dict[str, dict]:
             raise ValueError("exists and is not a layout file; left as it is")
     kept = old.get("layouts") if isinstance(old.get("layouts"), dict) else {}
     layouts = {**kept, name: document}
-    text = json.dumps({**document, "layouts": layouts}, indent=2) + "\n"
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent or ".")
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8") as f:
-            f.write(text)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+    write_json_atomic(path, {**document, "layouts": layouts})
     return layouts
