@@ -29,3 +29,25 @@ def chromium() -> str | None:
     with sync_playwright() as p:
         path = p.chromium.executable_path
     return path if path and Path(path).is_file() else None
+
+
+# software WebGL: a headless browser on a machine without a GPU
+FLAGS = ["--use-angle=swiftshader", "--enable-unsafe-swiftshader", "--no-sandbox"]
+
+
+def launched_browser():
+    """A generator for a module fixture: the Chromium of :func:`chromium`, launched headless by
+    playwright, closed after the module; the test is skipped where none is found (failed
+    under CI, whose .ci/run installs one)."""
+    import pytest
+    from playwright.sync_api import sync_playwright
+
+    path = chromium()
+    if path is None:
+        if os.environ.get("CI"):
+            pytest.fail("no Chromium installed under CI: .ci/run should have installed it")
+        pytest.skip(f"no Chromium found; install one: {INSTALL}")
+    with sync_playwright() as p:
+        b = p.chromium.launch(executable_path=path, args=FLAGS)
+        yield b
+        b.close()

@@ -12,7 +12,6 @@ line saying how to install one; under CI (``CI`` set) a missing browser fails in
 
 import contextlib
 import io
-import os
 import time
 
 import numpy as np
@@ -20,14 +19,12 @@ import pytest
 
 from rgmcad.cli import main
 from rgmcad.scene.loader import load_scenario
-from tests._browsers import INSTALL, chromium
+from tests._browsers import launched_browser
 
 playwright = pytest.importorskip("playwright.sync_api", reason="playwright is not installed "
                                  "(uv sync installs it with the dev dependencies)")
 
 SIMPLE = "scenarios/simple.toml"
-# software WebGL: a headless browser on a machine without a GPU
-FLAGS = ["--use-angle=swiftshader", "--enable-unsafe-swiftshader", "--no-sandbox"]
 READY_WITHIN_MS = 120_000
 """How long a page may take to be ready before the test fails: generous, a busy machine with
 software GL is slow, and the figure is printed, not asserted."""
@@ -35,15 +32,7 @@ software GL is slow, and the figure is printed, not asserted."""
 
 @pytest.fixture(scope="module")
 def browser():
-    path = chromium()
-    if path is None:
-        if os.environ.get("CI"):
-            pytest.fail("no Chromium installed under CI: .ci/run should have installed it")
-        pytest.skip(f"no Chromium found; install one: {INSTALL}")
-    with playwright.sync_playwright() as p:
-        b = p.chromium.launch(executable_path=path, args=FLAGS)
-        yield b
-        b.close()
+    yield from launched_browser()
 
 
 @contextlib.contextmanager

@@ -11,20 +11,18 @@ tests are slow ones (``-m slow``).
 from __future__ import annotations
 
 import io
-import os
 import time
 
 import numpy as np
 import pytest
 
-from tests._browsers import INSTALL, chromium
+from tests._browsers import launched_browser
 from tests._live import BROKEN, FAILING, TRACK, Server
 from tests._support import cli_output
 
 playwright = pytest.importorskip("playwright.sync_api", reason="playwright is not installed "
                                  "(uv sync installs it with the dev dependencies)")
 
-FLAGS = ["--use-angle=swiftshader", "--enable-unsafe-swiftshader", "--no-sandbox"]
 WITHIN_MS = 60_000
 """How long the page may take to show a change before the test fails: generous (software
 GL on a busy machine); the times are printed, and tools/live_latency.py measures them."""
@@ -32,15 +30,7 @@ GL on a busy machine); the times are printed, and tools/live_latency.py measures
 
 @pytest.fixture(scope="module")
 def browser():
-    path = chromium()
-    if path is None:
-        if os.environ.get("CI"):
-            pytest.fail("no Chromium installed under CI: .ci/run should have installed it")
-        pytest.skip(f"no Chromium found; install one: {INSTALL}")
-    with playwright.sync_playwright() as p:
-        b = p.chromium.launch(executable_path=path, args=FLAGS)
-        yield b
-        b.close()
+    yield from launched_browser()
 
 
 @pytest.fixture(scope="module")
