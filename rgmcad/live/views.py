@@ -18,7 +18,7 @@ from rgmcad.geometry import transform_points, translation
 from rgmcad.sim.causal import EventState
 from rgmcad.sim.run import Outcome, SimulationResult
 from rgmcad.viewer.page import html_page, replay_section
-from rgmcad.viewer.recording import Replay, replay_payload
+from rgmcad.viewer.recording import Replay, replay_payload, scene_meshes
 
 __all__ = ["display", "real", "display_unit", "summary", "fails_at", "still_replay",
            "side_by_side", "viewer_html"]
@@ -70,22 +70,14 @@ def still_replay(scenario, scene, validity, title: str) -> Replay:
     """One frame of ``scene`` (a :class:`~rgmcad.scene.bodies.Scene` that was not simulated
     because its parts overlap), the overlapping bodies red and the others grey."""
     hot = {name for o in validity.overlaps for name in (o.first, o.second)}
-    keys: dict[int, int] = {}
-    names, meshes, mesh_of, static, colors, planes, poses, labels = [], [], [], [], [], [], [], []
-    for name, body in scene.bodies.items():
-        if body.plane:
-            planes.append(np.asarray(body.pose, float))
-            continue
-        k = keys.setdefault(id(body.built), len(meshes))
-        if k == len(meshes):
-            meshes.append((np.asarray(body.built.vertices, float),
-                           np.asarray(body.built.faces, np.int64)))
-        names.append(name)
-        mesh_of.append(k)
-        static.append(body.static)
-        colors.append(_OVERLAP if name in hot else _CLEAR_STATIC if body.static else _CLEAR_MOVING)
-        poses.append(np.asarray(body.pose, float))
-        labels.append(scenario.objects[body.object].run or body.object)  # as the viewer tags
+    meshes, mesh_of, static, planes = scene_meshes(scene)
+    solid = {name: body for name, body in scene.bodies.items() if not body.plane}
+    names = list(solid)
+    colors = [_OVERLAP if name in hot else _CLEAR_STATIC if body.static else _CLEAR_MOVING
+              for name, body in solid.items()]
+    poses = [np.asarray(body.pose, float) for body in solid.values()]
+    labels = [scenario.objects[body.object].run or body.object  # as the viewer tags
+              for body in solid.values()]
     events = tuple({"name": name, "after": list(spec.after), "join": spec.join,
                     "state": EventState.ASLEEP.value, "time": None, "description": spec.description}
                    for name, spec in scenario.events.items())

@@ -22,7 +22,7 @@ from rgmcad.geometry import transform_points
 from rgmcad.scene.model import Scenario
 from rgmcad.scene.palette import plane_colour, runs_of, scene_colours
 
-__all__ = ["DEFAULT_RATE", "Replay", "record_replay", "replay_payload"]
+__all__ = ["DEFAULT_RATE", "Replay", "record_replay", "replay_payload", "scene_meshes"]
 
 DEFAULT_RATE = 100.0
 """Poses recorded per simulated second."""
@@ -110,20 +110,10 @@ def record_replay(scenario: Scenario, values, parts: Mapping, *, rate: float = D
     scene = scene_of[0]
     runs = runs_of(scenario)
     palette = scene_colours(scene, runs)  # the colours of the PNG, the video and the report
-    keys: dict[int, int] = {}
-    meshes, mesh_of, static, colors, planes, labels = [], [], [], [], [], []
-    for body in scene.bodies.values():
-        if body.plane:
-            planes.append(np.asarray(body.pose, float))
-            continue
-        k = keys.setdefault(id(body.built), len(meshes))
-        if k == len(meshes):
-            meshes.append((np.asarray(body.built.vertices, float),
-                           np.asarray(body.built.faces, np.int64)))
-        mesh_of.append(k)
-        static.append(body.static)
-        colors.append(palette[body.name])
-        labels.append(runs.get(body.object, body.object))
+    meshes, mesh_of, static, planes = scene_meshes(scene)
+    solid = [b for b in scene.bodies.values() if not b.plane]
+    colors = [palette[body.name] for body in solid]
+    labels = [runs.get(body.object, body.object) for body in solid]
     seen = {e.name: e for e in result.events}
     events = tuple({"name": name, "after": list(spec.after), "join": spec.join,
                     "state": seen[name].state.value,
@@ -135,6 +125,25 @@ def record_replay(scenario: Scenario, values, parts: Mapping, *, rate: float = D
         colors=np.asarray(colors, float), planes=tuple(planes), times=np.asarray(times),
         poses=np.stack(frames), events=events, outcome=result.outcome.value,
         labels=tuple(labels))
+
+
+def scene_meshes(scene) -> tuple[list, list[int], list[bool], list[np.ndarray]]:
+    """What a replay draws of ``scene``'s bodies, planes aside, in the scene's order: each
+    built mesh once ``(vertices, faces)``, the mesh of each body, whether each is static, and
+    the planes' poses."""
+    keys: dict[int, int] = {}
+    meshes, mesh_of, static, planes = [], [], [], []
+    for body in scene.bodies.values():
+        if body.plane:
+            planes.append(np.asarray(body.pose, float))
+            continue
+        k = keys.setdefault(id(body.built), len(meshes))
+        if k == len(meshes):
+            meshes.append((np.asarray(body.built.vertices, float),
+                           np.asarray(body.built.faces, np.int64)))
+        mesh_of.append(k)
+        static.append(body.static)
+    return meshes, mesh_of, static, planes
 
 
 def _b64(array: np.ndarray, dtype: str) -> str:
