@@ -105,7 +105,7 @@ def main() -> None:
     out.mkdir(parents=True, exist_ok=True)
     common = (["--scheduler", args.scheduler] if args.scheduler
               else ["--workers", str(args.workers)])
-    evaluate = ["--samples", str(args.samples), "--seed", str(args.eval_seed),
+    evaluate = ["--rho-g", "--samples", str(args.samples), "--seed", str(args.eval_seed),
                 "--physics", args.physics, *common]
 
     ref = args.reference
