@@ -36,6 +36,11 @@ class RgmcadError(ValueError):
         super().__init__(": ".join([*parts, self.message]))
 
 
+def error_line(exc: RgmcadError) -> str:
+    """What ``rgmcad`` prints for ``exc`` (and the live page shows): one line."""
+    return f"rgmcad: error: {' '.join(str(exc).splitlines())}"
+
+
 class ScenarioError(RgmcadError):
     """Bad input in a scenario, layout or part file."""
 

@@ -18,7 +18,7 @@ import sys
 from rgmcad.cli.common import scheduler_from_environment
 from rgmcad.cli.parser import Parser, add_global_options
 from rgmcad.cli.paths import default_build_dir, output_dir
-from rgmcad.errors import RgmcadError
+from rgmcad.errors import RgmcadError, error_line
 
 COMMANDS: dict[str, tuple[str, str]] = {
     "simulate": ("simulate", "simulate one layout and print the event timeline"),
@@ -96,7 +96,7 @@ def main(argv: list[str] | None = None) -> int:
             args.scenario = str(scenario_path(args.scenario))
         return args.run(args)
     except RgmcadError as exc:
-        print(f"rgmcad: error: {' '.join(str(exc).splitlines())}", file=sys.stderr)
+        print(error_line(exc), file=sys.stderr)
         return 2
     except BrokenPipeError:  # whoever read stdout stopped (`rgmcad ... | head`): no traceback
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())

@@ -7,16 +7,11 @@ import re
 
 from rgmcad.errors import RgmcadError
 
-__all__ = ["error_line", "failure_line", "file_line", "key_line"]
+__all__ = ["failure_line", "file_line", "key_line"]
 
 _AT_LINE = re.compile(r"\(at line (\d+), column \d+")
 _HEADER = re.compile(r"^\s*\[\[?\s*([^\]]+?)\s*\]\]?\s*(#.*)?$")
 _INDEX = re.compile(r"\[-?\d+\]$")
-
-
-def error_line(exc: RgmcadError) -> str:
-    """What ``rgmcad`` prints for ``exc`` (rgmcad/cli/__init__.py): one line."""
-    return f"rgmcad: error: {' '.join(str(exc).splitlines())}"
 
 
 def failure_line(exc: BaseException) -> str:

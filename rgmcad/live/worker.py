@@ -28,8 +28,8 @@ from pathlib import Path
 
 import numpy as np
 
-from rgmcad.errors import RgmcadError
-from rgmcad.live.errors import error_line, failure_line, file_line
+from rgmcad.errors import RgmcadError, error_line
+from rgmcad.live.errors import failure_line, file_line
 
 __all__ = ["Request", "init", "hello", "view", "sweep_point", "document"]
 
