@@ -28,11 +28,23 @@ from watchdog.observers import Observer
 
 from rgmcad.files import write_json_atomic
 
-__all__ = ["watched_files", "Watcher", "read_saved", "write_saved"]
+__all__ = ["scenario_text", "watched_files", "Watcher", "read_saved", "write_saved"]
 
 _WRITES = {EVENT_TYPE_MODIFIED, EVENT_TYPE_CREATED, EVENT_TYPE_MOVED, EVENT_TYPE_DELETED,
            EVENT_TYPE_CLOSED}
 """Events that change a file (opening or reading one, as the worker does, is none)."""
+
+
+def scenario_text(scenario: str | Path) -> str | None:
+    """The scenario file's text, read as the loader reads it (sized first, at most
+    ``MAX_FILE_BYTES``: a huge file costs nothing); None when it cannot be read so."""
+    from rgmcad.scene.loader_checks import FileRefused, read_limited
+    from rgmcad.scene.schema import MAX_FILE_BYTES
+
+    try:
+        return read_limited(scenario, MAX_FILE_BYTES).decode("utf-8")
+    except (OSError, FileRefused, UnicodeDecodeError):
+        return None
 
 
 def watched_files(scenario: str | Path) -> set[Path]:
@@ -41,8 +53,8 @@ def watched_files(scenario: str | Path) -> set[Path]:
     scenario = Path(scenario)
     files = {scenario}
     try:
-        data = tomllib.loads(scenario.read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError, RecursionError):
+        data = tomllib.loads(scenario_text(scenario) or "")
+    except (tomllib.TOMLDecodeError, RecursionError):
         data = {}
     runs = data.get("runs")
     for run in runs.values() if isinstance(runs, dict) else ():

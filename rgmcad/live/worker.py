@@ -30,6 +30,7 @@ import numpy as np
 
 from rgmcad.errors import RgmcadError, error_line
 from rgmcad.live.errors import failure_line, file_line
+from rgmcad.live.files import scenario_text
 
 __all__ = ["Request", "init", "hello", "view", "sweep_point", "document"]
 
@@ -197,10 +198,7 @@ def _answer(task):
         except Superseded:
             return {"superseded": True}
         except RgmcadError as exc:
-            try:
-                text = Path(req.scenario).read_text(encoding="utf-8")
-            except (OSError, UnicodeDecodeError):
-                text = None
+            text = scenario_text(req.scenario)
             return {"error": error_line(exc), "line": file_line(exc, req.scenario, text)}
         except Exception as exc:  # noqa: BLE001 - any failure is one line on the page
             log.debug("live task failed", exc_info=True)
