@@ -36,7 +36,7 @@ _WRITES = {EVENT_TYPE_MODIFIED, EVENT_TYPE_CREATED, EVENT_TYPE_MOVED, EVENT_TYPE
 
 
 def scenario_text(scenario: str | Path) -> str | None:
-    """The scenario file's text, read as the loader reads it (sized first, at most
+    """A scenario (or layout) file's text, read as the loader reads it (sized first, at most
     ``MAX_FILE_BYTES``: a huge file costs nothing); None when it cannot be read so."""
     from rgmcad.scene.loader_checks import FileRefused, read_limited
     from rgmcad.scene.schema import MAX_FILE_BYTES
@@ -113,10 +113,13 @@ def read_saved(path: str | Path) -> tuple[dict[str, dict], str]:
     path = Path(path)
     if not path.exists():
         return {}, ""
+    text = scenario_text(path)  # a layout file has the scenario file's size limit
     try:
-        data = json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError, ValueError, RecursionError) as exc:
+        data = json.loads(text) if text is not None else None
+    except (ValueError, RecursionError) as exc:
         return {}, f"{path}: not read as a layout file ({type(exc).__name__})"
+    if text is None:
+        return {}, f"{path}: not read as a layout file (too large, or not a UTF-8 file)"
     layouts = data.get("layouts") if isinstance(data, dict) else None
     if not isinstance(layouts, dict):
         return {}, ""
@@ -135,8 +138,8 @@ def write_saved(path: str | Path, name: str, document: dict) -> dict[str, dict]:
     old: dict = {}
     if path.exists():
         try:
-            old = json.loads(path.read_text(encoding="utf-8"))
-        except (UnicodeDecodeError, ValueError, RecursionError):
+            old = json.loads(scenario_text(path) or "")
+        except (ValueError, RecursionError):
             raise ValueError("exists and is not a JSON layout file; left as it is") from None
         if not isinstance(old, dict) or ("values" not in old and "vector" not in old
                                          and "layouts" not in old):
