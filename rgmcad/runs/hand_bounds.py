@@ -26,7 +26,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from rgmcad.runs.hand import Builds, Hand
-from rgmcad.runs.tolerance_check import CheckedTolerances, printed_offsets, sides_of
+from rgmcad.runs.tolerance_check import CheckedTolerances, printed_offsets, printed_step, sides_of
 from rgmcad.scene.perturbation import PhysicsDraw, PhysicsRanges
 from rgmcad.sim.run import Outcome
 
@@ -73,7 +73,7 @@ def hand_at_bounds(checked: CheckedTolerances, x, scenario, builds: Builds, hand
     x = np.asarray(x, dtype=float)
     low, high = bounds(scenario)
     width = high - low
-    unit = np.array([10.0 if f.unit == "deg" else 10000.0 for f in scenario.free])  # 0.1s
+    step = printed_step(scenario) * width  # 0.1 mm or 0.1 degree, in real units
     draws = [PhysicsDraw(hand.ranges(physics), seed, i) for i in range(2 * samples)]
     before = builds.simulations
     slack = int(np.floor(precision * samples + 1e-9))
@@ -103,7 +103,7 @@ def hand_at_bounds(checked: CheckedTolerances, x, scenario, builds: Builds, hand
                 del pending[j, k]
                 continue
             narrowed[j, k] = True
-            half = np.floor(offset * unit[j] / 2.0 + 1e-6) / unit[j]
+            half = np.floor(offset / step[j] / 2.0 + 1e-6) * step[j]
             if attempt == halvings or half <= 0.0:
                 out[j, k] = 0.0
                 del pending[j, k]
