@@ -11,10 +11,9 @@ groups, hinged bodies, hinge bases), two checks:
   maximal-coordinates body);
 * probe: for every piece, a ray from outside toward a point inside it, along a direction on
   which that piece is the first thing met, hits the right pybullet body where the exact piece
-  begins. Box, sphere, cylinder and plane pieces are hit exactly; a convex hull piece of a
-  compound may carry pybullet's 1 mm default margin (``changeDynamics(collisionMargin=)``
-  reaches only a multibody base's children), so it may be hit up to that much early, never
-  late. A missing piece leaves the ray to hit nothing, or something farther.
+  begins, to 20 um: every kind of piece, convex hulls of compounds included (their hulls are
+  inset by the collision margin they carry, :mod:`rgmcad.sim.shapes`). A missing piece
+  leaves the ray to hit nothing, or something farther.
 """
 
 from __future__ import annotations
@@ -46,7 +45,7 @@ from rgmcad.sim.world import World
 FAMILIES = load_families()
 SCENARIOS = sorted((Path(__file__).parent.parent / "scenarios").glob("*.toml"))
 TOL = 2e-5  # m: where a ray meets a piece, against the exact piece
-HULL_PAD = 1e-3  # m: the margin pybullet gives convex hull children of a compound
+HULL_PAD = 0.0  # m: how much earlier than the exact piece a hull may be met
 CLEAR = 1e-3  # m: a probe ray keeps this far from the other pieces (grazing rays hit early)
 GOBLET = {"inner_height": 0.11, "top_radius": 0.036, "bottom_radius": 0.025, "wall": 0.002}
 TRACK = {"length": 0.3, "width": 0.025, "height": 0.006, "wall": 0.003}

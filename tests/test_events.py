@@ -211,6 +211,37 @@ def test_point_velocity_is_the_rate_of_change_of_the_point_position():
     assert checked == 6
 
 
+def test_a_hinged_lever_is_judged_on_the_pose_of_the_step():
+    """A lever swinging on its axle (a multibody link): its toppling event fires at the step
+    after which its true angle (the joint's coordinate) first reaches the threshold, and the
+    readers give the attitude and the centre's velocity of that step, not the step before's."""
+    import pybullet as pb
+
+    from rgmcad.sim.world import World
+
+    lever = {"part": "lever", "params": {"length": 0.2, "width": 0.02, "thickness": 0.005,
+                                         "pivot_x": 0.05}, "mass": 0.02, "pose": {"z": 0.3}}
+    scenario = tiny({"lever": lever}, {"e": {"type": "toppling", "body": "lever", "angle": 20}})
+    with World(scene_of(scenario), scenario.settings) as world:
+        h = world.handles["lever"]
+        frame, velocity = world.frame_reader("lever"), world.velocity_reader("lever")
+        start = np.array(pb.getQuaternionFromEuler([0, 0, 0]))
+        steps, angle = 0, 0.0
+        while angle < math.radians(20):
+            world.step()
+            steps += 1
+            angle = abs(pb.getJointState(h.uid, h.link, physicsClientId=world.cid)[0])
+            position, quaternion = frame()
+            turned = 2 * math.acos(min(1.0, abs(float(np.dot(quaternion, start)))))
+            assert turned == pytest.approx(angle, abs=1e-9), steps
+            axis_point = np.asarray(world.scene.hinges[0].point, float)  # fixed in the world
+            omega = np.array(velocity()[1])
+            wanted = np.cross(omega, np.array(position) - axis_point)
+            assert np.allclose(velocity()[0], wanted, atol=1e-9), steps
+    result = run(scenario)
+    assert result.events[0].time == pytest.approx(steps * scenario.settings.timestep, abs=1e-12)
+
+
 # --- negate = "always": the condition never holds while the event is awake ------------------
 
 DROP = {"floor": FLOOR, "ball": ball_at(0.2)}  # touches the floor at about 0.197 s

@@ -9,7 +9,13 @@ What pybullet shape a piece is gets written once, per piece type (:func:`shape_a
   a body of more pieces gets one OBJ file of several objects per scene body, which pybullet
   loads as one convex hull child per object (:func:`packed`);
 * an OBJ file's name is its content's digest: pybullet caches file contents by name
-  (``enableFileCaching``), so a name never stands for other content.
+  (``enableFileCaching``), so a name never stands for other content;
+* pybullet pads a convex hull by its collision margin (1 mm unless set) and
+  ``changeDynamics(collisionMargin=)`` reaches the children of a compound only on a multibody's
+  base: every shape gets its margin from a throwaway base at creation (:func:`set_margin`),
+  and every hull is inset by that margin (:func:`inset_vertices`), so hull plus margin is the
+  piece. Boxes and cylinders keep their size under any margin (it only rounds their edges);
+  a sphere's or a capsule's margin is its radius.
 
 Files are derived data of the parts, kept in the caller's :class:`~rgmcad.sim.cache.PartCache`.
 """
@@ -83,8 +89,8 @@ def _(piece: CapsulePiece) -> dict:  # pybullet's height: between the hemisphere
 
 
 @shape_arguments.register
-def _(piece: ConvexPiece) -> dict:
-    return {"shapeType": pb.GEOM_MESH, "vertices": np.asarray(piece.vertices, float).tolist()}
+def _(piece: ConvexPiece) -> dict:  # collision_shape gives the vertices, inset by the margin
+    return {"shapeType": pb.GEOM_MESH}
 
 
 @shape_arguments.register
@@ -98,23 +104,26 @@ def _(piece: Hulls) -> dict:
 
 
 @singledispatch
-def mesh_file(piece, cache: PartCache) -> str:
-    """The OBJ file of a mesh child of a compound (``createCollisionShapeArray`` takes files)."""
+def mesh_file(piece, cache: PartCache, margin: float) -> str:
+    """The OBJ file of a mesh child of a compound (``createCollisionShapeArray`` takes files),
+    its hulls inset by ``margin`` (m)."""
     raise TypeError(f"a {type(piece).__name__} has no mesh file")
 
 
 @mesh_file.register
-def _(piece: ConvexPiece, cache: PartCache) -> str:
-    # the piece's vertices as given: its frame is the child's frame
-    return cache.get("obj", piece, lambda: _write_obj(cache, [np.asarray(piece.vertices, float)]))
+def _(piece: ConvexPiece, cache: PartCache, margin: float) -> str:
+    # the piece's vertices in its own frame: its frame is the child's frame
+    return cache.get(("obj", margin), piece,
+                     lambda: _write_obj(cache, [inset(piece, margin, cache)]))
 
 
 @mesh_file.register
-def _(piece: Hulls, cache: PartCache) -> str:
+def _(piece: Hulls, cache: PartCache, margin: float) -> str:
     pieces = tuple(p for p, _ in piece.pieces)
     if not piece.baked:  # frames are the pieces' own: the pieces say it all
-        return cache.get("hulls obj", pieces, lambda: _write_obj(cache, _placed(piece)))
-    blocks = _placed(piece)
+        return cache.get(("hulls obj", margin), pieces,
+                         lambda: _write_obj(cache, _placed(piece, margin, cache)))
+    blocks = _placed(piece, margin, cache)
     digest = hashlib.sha256(b"".join(b.tobytes() for b in blocks)).hexdigest()
     return cache.get(("baked obj", digest), (), lambda: _write_obj(cache, blocks))
 
@@ -136,11 +145,43 @@ def _(piece: ConvexPiece) -> np.ndarray:
     return np.asarray(piece.vertices, float)
 
 
-def _placed(hulls: Hulls) -> list[np.ndarray]:
-    """(n, 3) vertices of each piece, placed at its frame."""
+def inset_vertices(vertices, margin: float) -> np.ndarray:
+    """(k, 3) vertices of the convex hull of ``vertices`` (n, 3) with every face moved inward
+    by ``margin`` (m): padded by a margin that size, it has the hull's faces again (its edges
+    and corners rounded by the margin). A hull too thin for that (inradius under twice the
+    margin) is inset by half its inradius, so its faces stand out by the rest."""
+    from scipy.optimize import linprog
+    from scipy.spatial import ConvexHull, HalfspaceIntersection
+
+    verts = np.asarray(vertices, float)
+    if margin <= 0:
+        return verts
+    planes = np.unique(np.round(ConvexHull(verts).equations, 13), axis=0)  # n . x + d <= 0
+    centre = verts.mean(axis=0)
+    depth = -float((planes[:, :3] @ centre + planes[:, 3]).max())
+    if depth <= 2 * margin:  # the deepest point instead (Chebyshev centre): max r, n.x + r <= -d
+        found = linprog([0, 0, 0, -1], A_ub=np.hstack([planes[:, :3], np.ones((len(planes), 1))]),
+                        b_ub=-planes[:, 3], bounds=[(None, None)] * 3 + [(0, None)])
+        if not found.success or found.x[3] <= 1e-9:
+            return verts  # flat: nothing to inset
+        centre, depth = found.x[:3], float(found.x[3])
+    shrunk = planes.copy()
+    shrunk[:, 3] += min(margin, depth / 2)
+    points = HalfspaceIntersection(shrunk, centre).intersections
+    return points[ConvexHull(points).vertices]
+
+
+def inset(piece, margin: float, cache: PartCache) -> np.ndarray:
+    """:func:`inset_vertices` of a piece's :func:`hull_vertices`, once per piece and margin."""
+    return cache.get(("inset", margin), piece,
+                     lambda: inset_vertices(hull_vertices(piece), margin))
+
+
+def _placed(hulls: Hulls, margin: float, cache: PartCache) -> list[np.ndarray]:
+    """(n, 3) vertices of each piece, inset by ``margin`` and placed at its frame."""
     out = []
     for piece, frame in hulls.pieces:
-        verts = hull_vertices(piece)
+        verts = inset(piece, margin, cache)
         if not np.array_equal(frame, np.eye(4)):  # else as written for one piece, bit for bit
             verts = transform_points(np.asarray(frame, float), verts)
         out.append(verts)
@@ -172,14 +213,35 @@ def _write_obj(cache: PartCache, blocks: list[np.ndarray]) -> str:
 # --- compound shapes ----------------------------------------------------------------------------
 
 
-def collision_shape(engine, pieces: list[tuple[Piece, np.ndarray]], cache: PartCache) -> int:
+def set_margin(engine, shape: int, margin: float) -> None:
+    """Give ``shape`` and every child of it the collision margin ``margin`` (m).
+
+    ``changeDynamics(collisionMargin=)`` sets the children's margins only on a multibody's
+    base (on a maximal-coordinates body or a link it sets the compound's own), and a margin
+    belongs to the shape, shared by every body made from it: so a throwaway base of the shape
+    takes the margin and is removed (its body id goes to the next body created)."""
+    holder = engine.createMultiBody(baseMass=0.0, baseCollisionShapeIndex=shape,
+                                    basePosition=[0.0, 0.0, -1e3])
+    engine.changeDynamics(holder, -1, collisionMargin=margin)
+    engine.removeBody(holder)
+
+
+def collision_shape(engine, pieces: list[tuple[Piece, np.ndarray]], cache: PartCache,
+                    margin: float) -> int:
     """A collision shape in ``engine`` (:class:`~rgmcad.sim.engine.Engine`) from pieces
-    given with their (4, 4) frame in the shape frame."""
+    given with their (4, 4) frame in the shape frame, whose surface is the pieces': hulls
+    inset by the collision ``margin`` (m) that every piece is given."""
     if len(pieces) == 1:
         piece, frame = pieces[0]
         pos, orn = to_pybullet(frame)
-        return engine.createCollisionShape(**shape_arguments(piece), collisionFramePosition=pos,
-                                           collisionFrameOrientation=orn)
+        args = shape_arguments(piece)
+        if isinstance(piece, ConvexPiece):
+            args["vertices"] = inset(piece, margin, cache).tolist()
+        shape = engine.createCollisionShape(**args, collisionFramePosition=pos,
+                                            collisionFrameOrientation=orn)
+        if isinstance(piece, (ConvexPiece, BoxPiece, CylinderPiece)):
+            set_margin(engine, shape, margin)
+        return shape
     if len(pieces) > ARRAY_CHILDREN:  # bodies of 16 pieces or fewer are built as they were
         pieces = packed(pieces)
     types, radii, halves, lengths, files, positions, orientations = [], [], [], [], [], [], []
@@ -194,11 +256,13 @@ def collision_shape(engine, pieces: list[tuple[Piece, np.ndarray]], cache: PartC
         radii.append(args.get("radius", 0.0))
         halves.append(args.get("halfExtents", [0.0, 0.0, 0.0]))
         lengths.append(args.get("height", 0.0))
-        files.append(mesh_file(piece, cache) if args["shapeType"] == pb.GEOM_MESH else "")
-    return engine.createCollisionShapeArray(
+        files.append(mesh_file(piece, cache, margin) if args["shapeType"] == pb.GEOM_MESH else "")
+    shape = engine.createCollisionShapeArray(
         types, radii=radii, halfExtents=halves, lengths=lengths, fileNames=files,
         meshScales=[[1, 1, 1]] * len(types), collisionFramePositions=positions,
         collisionFrameOrientations=orientations)
+    set_margin(engine, shape, margin)
+    return shape
 
 
 def packed(pieces: list[tuple[Piece, np.ndarray]]) -> list[tuple[Piece | Hulls, np.ndarray]]:
@@ -207,7 +271,7 @@ def packed(pieces: list[tuple[Piece, np.ndarray]]) -> list[tuple[Piece | Hulls, 
     Each scene body's convex pieces become one :class:`Hulls` entry (a scene body: the pieces
     sharing ``frame @ inv(piece.frame)``), so its file does not depend on the layout. Boxes,
     spheres and cylinders stay exact primitives while they fit. If they do not, boxes join their
-    body's hulls as the hull of their 8 corners (the same solid, but padded outward by a hull's
+    body's hulls as the hull of their 8 corners (the same solid, inset and padded by the
     margin like the other hulls); if that is still too many entries (many welded bodies), all
     hulls and the boxes that must go are baked into one file in the body's frame. Spheres and
     cylinders have no exact hull: more than fit is an error.

@@ -11,8 +11,9 @@ and :mod:`rgmcad.sim.shapes`:
 * a hinge is a two-link multibody (fixed base = the axle or the world, revolute link = the
   moving body) whose default velocity motor is switched off; ``createConstraint`` has no hinge
   (bullet3 issues #2005, #4701);
-* convex mesh pieces get a 0.1 mm collision margin instead of pybullet's 1 mm; compound
-  bodies are built by :func:`~rgmcad.sim.shapes.collision_shape` (OBJ files, and bullet3#2185);
+* collision shapes are built by :func:`~rgmcad.sim.shapes.collision_shape`: OBJ files for
+  compounds (bullet3#2185), the settings' collision margin on every piece of every kind of
+  body, hulls inset by it so that the surface the physics sees is the part's;
 * sleeping is disabled, so slow levers are never frozen;
 * inertia comes from the CAD solid (principal moments and axes), not from the collision
   shape's bounding box.
@@ -28,7 +29,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from rgmcad.geometry import from_pybullet, invert, matmul, moved_point, norm, rotated_z, to_pybullet
-from rgmcad.parts.pieces import ConvexPiece, Piece, PlanePiece
+from rgmcad.parts.pieces import Piece, PlanePiece
 from rgmcad.scene.bodies import Scene, SceneBody
 from rgmcad.scene.model import SimulationSettings
 from rgmcad.sim.cache import PartCache
@@ -128,7 +129,7 @@ class World:
 
     def _shape(self, pieces: list[tuple[Piece, np.ndarray]]) -> int:
         """A collision shape from pieces given with their (4, 4) frame in the shape frame."""
-        return collision_shape(self.engine, pieces, self.cache)
+        return collision_shape(self.engine, pieces, self.cache, self.settings.convex_margin)
 
     def _build(self):
         scene = self.scene
@@ -298,16 +299,9 @@ class World:
 
     def _surface(self, uid, link, body: SceneBody, **extra):
         phys = body.physical
-        if self._has_convex(body):
-            extra["collisionMargin"] = self.settings.convex_margin
         self.engine.changeDynamics(
             uid, link, lateralFriction=phys.friction, restitution=phys.restitution,
             rollingFriction=phys.rolling_friction, spinningFriction=phys.spinning_friction, **extra)
-
-    def _has_convex(self, body: SceneBody) -> bool:
-        return body.built is not None and self.cache.get(
-            "has convex", body.built,
-            lambda: any(isinstance(p, ConvexPiece) for p in body.built.pieces))
 
     def _dynamics(self, uid, link, body: SceneBody, mass: float, moments, **extra):
         phys = body.physical
@@ -330,6 +324,13 @@ class World:
 
     # -- state -------------------------------------------------------------------------------
 
+    # _LINK_STATE: a hinged body is a multibody link, and pybullet's getLinkState without
+    # forward kinematics reports the link's cached world transform, which stepSimulation sets
+    # (btMultiBody::forwardKinematics) before it integrates the positions: after a step it is
+    # the step before's pose, while the collision shape has moved on; the world velocity of
+    # its centre of mass is turned by that stale rotation too. Every reader of a link asks
+    # for forward kinematics (under 1 us a call).
+
     # Readers call pybullet with the world's client id themselves, as a positional argument:
     # they run at every step, and the engine's bound functions (keyword arguments) cost
     # 0.3-0.7 us more per call.
@@ -349,7 +350,7 @@ class World:
             if velocity:
                 return pos, orn, *pb.getBaseVelocity(h.uid, physicsClientId=self.cid)
             return pos, orn
-        # without forward kinematics a link's pose is the step before's (its velocity is current)
+        # with forward kinematics: see _LINK_STATE
         state = pb.getLinkState(h.uid, h.link, computeLinkVelocity=int(velocity),
                                 computeForwardKinematics=1, physicsClientId=self.cid)
         if velocity:
@@ -378,8 +379,8 @@ class World:
             return functools.partial(pb.getBaseVelocity, h.uid, cid)
         get_state, uid, link = pb.getLinkState, h.uid, h.link
 
-        def read():  # computeLinkVelocity=1, computeForwardKinematics=0
-            state = get_state(uid, link, 1, 0, cid)
+        def read():  # computeLinkVelocity=1, computeForwardKinematics=1 (_LINK_STATE)
+            state = get_state(uid, link, 1, 1, cid)
             return state[6], state[7]
 
         return read
@@ -391,7 +392,7 @@ class World:
         if h.link < 0:  # pybullet's own function: no Python frame of ours per call
             return functools.partial(pb.getBasePositionAndOrientation, h.uid, cid)
         get_state, uid, link = pb.getLinkState, h.uid, h.link
-        return lambda: get_state(uid, link, 0, 0, cid)[:2]
+        return lambda: get_state(uid, link, 0, 1, cid)[:2]  # computeForwardKinematics=1
 
     def up_reader(self, name: str, direction) -> callable:
         """A function returning the world z component of ``direction`` (3,), a unit vector fixed
