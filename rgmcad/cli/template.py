@@ -47,9 +47,12 @@ def configure(p) -> None:
                    help=f"width of the strips neighbouring sheets share, mm "
                    f"(default: {DEFAULT_OVERLAP_MM:g})")
     p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
+    p.add_argument("--bom-json", action="store_true", help="print the bill of materials and "
+                   "the assembly steps as one JSON object on stdout instead")
 
 
 def run(args) -> int:
+    from rgmcad.making.ball_mass import read_cached
     from rgmcad.printing.template import scene_template
     from rgmcad.scene.bodies import make_scene
     from rgmcad.scene.layout_files import read_hand_note, read_push_against, read_tolerances
@@ -58,23 +61,27 @@ def run(args) -> int:
     output_dir(args.out, "--out", files=("template.pdf", "template.svg"))
     scenario = load_scenario_arg(args)
     name, values = layout_arg(scenario, args)
-    tolerances, note, push = {}, "", {}
+    tolerances, note, push, ball_mass = {}, "", {}, None
     if args.layout and args.layout not in scenario.layouts and not args.value:  # as optimised
         tolerances = read_tolerances(scenario, Path(args.layout))
         note = read_hand_note(Path(args.layout))
         push = read_push_against(scenario, Path(args.layout))
+        ball_mass = read_cached(Path(args.layout).parent, args.scenario, values)
     scene = make_scene(scenario, values, load_parts_of(scenario, args))
     paper = None if args.paper == "auto" else args.paper
     try:
         result = scene_template(scenario, scene, Path(args.out), tolerances=tolerances,
                                 plane=args.plane, paper=paper, overlap_mm=args.overlap,
                                 title=f"{scenario.name}, layout {name}", note=note,
-                                push=push)
+                                push=push, ball_mass=ball_mass)
     except OSError as exc:
         raise UsageError(str(args.out), "--out", f"cannot write the template ({exc})") \
             from None
     wall = time.perf_counter() - t0
     cols, rows = result.grid
+    if args.bom_json:
+        say(json.dumps({"layout": name, **result.making.to_json()}))
+        return 0
     if args.json:
         say(json.dumps({
             "scenario": scenario.name, "layout": name,

@@ -17,6 +17,7 @@ import numpy as np
 from rgmcad.files import naming
 from rgmcad.printing.drawing import Drawing, TextItem
 from rgmcad.printing.labels import font_name, pdf_safe, text_width, wrap
+from rgmcad.printing.making_pages import draw_making_pages
 from rgmcad.printing.plane import PlaneFrame
 from rgmcad.printing.ropes import rope_rows
 from rgmcad.printing.seams import seams_of
@@ -362,12 +363,15 @@ def _cover_pages(pdf, drawing, parts, info: SheetInfo, sheets, grid, title, fram
 def write_pdf(path: Path, title: str, drawing: Drawing, parts, frame: PlaneFrame,
               map_sheet: SheetInfo, sheets: tuple[SheetInfo, ...], grid: tuple[int, int],
               paper: str, orientation: str, overlap_mm: float,
-              empty: set[str] = frozenset(), note: str = "", seams=None, clear=None) -> int:
+              empty: set[str] = frozenset(), note: str = "", seams=None, clear=None,
+              making=None) -> int:
     """Write the template's PDF; returns its number of pages. ``empty``: labels of the
     sheets with nothing to place (:func:`empty_sheets`), which say so; ``note``: a line
     beside the assembly map (how often the layout works when built by hand); ``seams``: the
     sheets' (:func:`seams_of`, computed here when None); ``clear``: the parts (a shapely
-    geometry, drawing mm), which tick labels keep off.
+    geometry, drawing mm), which tick labels keep off; ``making``: the bill of materials and
+    the assembly steps (:class:`~rgmcad.printing.making_pages.Making`), drawn after the parts
+    list (:func:`~rgmcad.printing.making_pages.making_page_count` pages).
 
     ``parts`` are the drawing's :class:`rgmcad.printing.drawing.PartOutline` in placement
     order; ``sheets`` the tiled sheets, numbered after :func:`cover_page_count` pages.
@@ -375,6 +379,9 @@ def write_pdf(path: Path, title: str, drawing: Drawing, parts, frame: PlaneFrame
     pdf = _Pdf(path, title)
     _cover_pages(pdf, drawing, parts, map_sheet, sheets, grid, title, frame, paper,
                  orientation, overlap_mm, empty, note)
+    if making is not None:  # the bill of materials and the assembly steps
+        where = {p.name: part_sheets(p, sheets) for p in parts}
+        draw_making_pages(pdf, making, map_sheet.size_mm, title, where)
     seams = seams_of(sheets) if seams is None else seams
     for info in sheets:
         tile_page(pdf, drawing, info, seams, grid, title, paper, frame,

@@ -23,8 +23,10 @@ from pathlib import Path
 from shapely.ops import unary_union
 
 from rgmcad.errors import RgmcadError, ScenarioError
+from rgmcad.making.bom import PaperUse, write_stls
 from rgmcad.printing.drawing import PartOutline, build_drawing
 from rgmcad.printing.inputs import template_inputs
+from rgmcad.printing.making_pages import Making, making_page_count, scene_making
 from rgmcad.printing.pdf import cover_page_count, empty_sheets, write_pdf
 from rgmcad.printing.plane import PlaneFrame, resolve_plane
 from rgmcad.printing.ropes import scene_ropes
@@ -77,6 +79,9 @@ class TemplateResult:
     empty_sheets : tuple of str
         Labels of the sheets that show no part and no rope (each says so, and the map
         greys it).
+    making : Making or None
+        The bill of materials (its paper and tape lines for this template) and the assembly
+        steps, on the pages after the parts list.
     """
 
     pdf: Path
@@ -97,12 +102,13 @@ class TemplateResult:
     frames: tuple = ()
     ropes: tuple = ()
     empty_sheets: tuple[str, ...] = ()
+    making: Making | None = None
 
 
 def make_template(parts, base_planes, out_dir, *, plane: str | None = None,
                   paper: str | None = None, orientation: str | None = None,
                   overlap_mm: float = 12.0, title: str = "", frames=(), ropes=(),
-                  note: str = "") -> TemplateResult:
+                  note: str = "", making: Making | None = None) -> TemplateResult:
     """Write a printable 1:1 tiled assembly template of a posed layout.
 
     Parameters
@@ -130,6 +136,9 @@ def make_template(parts, base_planes, out_dir, *, plane: str | None = None,
         Frames whose tolerances are stated once, at their origin.
     ropes : sequence of PlacedRope
         Ropes drawn along their paths and listed with the length to cut.
+    making : Making, optional
+        The bill of materials and the assembly steps, drawn after the parts list; the bill
+        gets the template's paper and tape.
 
     Returns
     -------
@@ -171,12 +180,18 @@ def make_template(parts, base_planes, out_dir, *, plane: str | None = None,
                                           geoms=[o.outline for o in outlines], frames=frames,
                                           ropes=ropes)
     # the parts list names each part's sheets, and its length numbers the sheets' pages
-    first = cover_page_count(outlines, map_info.size_mm, sheets, drawing.ropes) + 1
+    first = (cover_page_count(outlines, map_info.size_mm, sheets, drawing.ropes)
+             + making_page_count(making, map_info.size_mm) + 1)
     sheets = tuple(replace(s, page=first + i) for i, s in enumerate(sheets))
+    if making is not None:
+        use = PaperUse(paper, first - 1 + len(sheets), len(sheets), len(seams),
+                       sum(len(s.marks) for s in seams))
+        making = replace(making, bill=making.bill.with_paper(use))
     pdf_path, svg_path = out_dir / "template.pdf", out_dir / "template.svg"
     empty = empty_sheets(outlines, sheets, drawing.ropes)
     n_pages = write_pdf(pdf_path, title, drawing, outlines, frame, map_info, sheets,
-                        (cols, rows), paper, orientation, overlap_mm, empty, note, seams, clear)
+                        (cols, rows), paper, orientation, overlap_mm, empty, note, seams, clear,
+                        making)
     write_svg(svg_path, drawing, title, frame)
 
     centres = {"map": dict(map_info.tag_centres_mm)}
@@ -187,13 +202,14 @@ def make_template(parts, base_planes, out_dir, *, plane: str | None = None,
         sheets=sheets, map_sheet=map_info, tag_centres=centres, parts=outlines,
         extent_mm=drawing.extent, overlap_mm=float(overlap_mm), n_pages=n_pages,
         frames=tuple(frames), ropes=drawing.ropes,
-        empty_sheets=tuple(s.label for s in sheets if s.label in empty),
+        empty_sheets=tuple(s.label for s in sheets if s.label in empty), making=making,
     )
 
 
 def scene_template(scenario, scene, out_dir, *, tolerances=None, plane: str | None = None,
                    paper: str | None = None, overlap_mm: float = 12.0,
-                   title: str = "", note: str = "", push=None) -> TemplateResult:
+                   title: str = "", note: str = "", push=None, making: bool = True,
+                   ball_mass=None) -> TemplateResult:
     """:func:`make_template` of a posed scene of ``scenario``, parts in placement order, with
     its ropes.
 
@@ -201,13 +217,23 @@ def scene_template(scenario, scene, out_dir, *, tolerances=None, plane: str | No
     beside the parts (see :mod:`rgmcad.printing.inputs`), as pushes against a part where
     ``push`` (``{"object.component": {"low" | "high": part}}``) says so. A plane the scenario lacks, an
     overlap out of range or a drawing too big for the paper raise :class:`ScenarioError`
-    naming the scenario file.
+    naming the scenario file. With ``making``, the PDF also holds the bill of materials
+    (``ball_mass``: :func:`rgmcad.making.ball_mass.read_cached`'s measurement, or None) and
+    the assembly steps with their pictures, and the printed parts' STL files are written to
+    ``out_dir/print/``.
     """
     parts, planes, frames = template_inputs(scenario, scene, tolerances, push)
     try:
-        return make_template(parts, planes, out_dir, plane=plane, paper=paper,
-                             overlap_mm=overlap_mm, title=title, frames=frames,
-                             ropes=scene_ropes(scene), note=note)
+        made = None
+        if making:
+            frame = resolve_plane(parts, planes, plane)
+            made = scene_making(scenario, scene, frame.normal, frame.v_axis, ball_mass)
+        result = make_template(parts, planes, out_dir, plane=plane, paper=paper,
+                               overlap_mm=overlap_mm, title=title, frames=frames,
+                               ropes=scene_ropes(scene), note=note, making=made)
+        if made is not None:
+            write_stls(made.bill, scene, out_dir)
+        return result
     except RgmcadError:
         raise
     except ValueError as exc:
