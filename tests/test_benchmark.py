@@ -47,6 +47,7 @@ def _lines(path: Path) -> int:
         return 0
 
 
+@pytest.mark.slow  # CI's second pass (.ci/run): the default suite stays under 5 minutes
 def test_a_killed_benchmark_resumes_to_the_identical_table(tmp_path):
     # killed in the middle of the second of three methods: one row finished, one half done,
     # one not begun
@@ -150,6 +151,7 @@ def test_ours_sets_the_budget_and_every_baseline_and_given_layout_is_paired_with
     assert "not run again: ours (factorised SPD)" in (tmp_path / "benchmark.md").read_text()
 
 
+@pytest.mark.slow  # CI's second pass (.ci/run): the default suite stays under 5 minutes
 def test_a_row_joins_the_table_only_under_the_same_protocol(tmp_path):
     def bench(*extra):
         argv = ["--build-dir", str(ROOT / "build" / "parts"), "benchmark", str(scenario),

@@ -90,6 +90,7 @@ def test_the_setting_is_a_count(bad):
         LearningSettings(close_in_copies=bad)
 
 
+@pytest.mark.slow  # CI's second pass (.ci/run): the default suite stays under 5 minutes
 def test_optimize_with_the_screen_says_what_it_did_and_otherwise_is_the_same_run(
         tmp_path, monkeypatch):
     # the user's view: `optimize` on simple with and without the screen; result.json, the

@@ -82,6 +82,7 @@ def _other_cpu() -> dict:
     return env
 
 
+@pytest.mark.slow  # CI's second pass (.ci/run): the default suite stays under 5 minutes
 def test_the_same_layouts_simulate_to_the_same_bits_under_another_cpus_kernels():
     other = _other_cpu()
     here, there = _simulate({}), _simulate(other)

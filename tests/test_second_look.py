@@ -4,6 +4,7 @@ refinement run again, and the refined layout kept only when it wins by simulatio
 import re
 
 import numpy as np
+import pytest
 
 from rgmcad.learning import Candidate, LearningSettings, second_look, verify_layout
 from rgmcad.learning.errors import ball_errors
@@ -193,6 +194,7 @@ def test_optimize_says_what_the_second_look_did_and_returns_that_layout(tmp_path
         "settings"]
 
 
+@pytest.mark.slow  # CI's second pass (.ci/run): the default suite stays under 5 minutes
 def test_looks_go_on_while_they_move_the_layout_and_the_first_is_the_same(tmp_path):
     # the user asks for up to four looks: the first is the one a single look makes; another
     # follows only a look that kept its refined layout, each at errors of its own; the layout

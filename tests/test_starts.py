@@ -214,6 +214,7 @@ def test_a_bad_start_is_refused_in_one_line_before_any_simulation(
     assert not run.exists()
 
 
+@pytest.mark.slow  # CI's second pass (.ci/run): the default suite stays under 5 minutes
 def test_an_interrupted_run_from_a_start_resumes_to_the_same_result(tmp_path):
     from rgmcad.runs.workflow import optimize_scenario
 
