@@ -72,14 +72,37 @@ def _viewer(page):
     return page.frame_locator("iframe.front")
 
 
+def _camera(page) -> dict:
+    return _viewer(page).locator("body").evaluate("() => window.rgmcadViewer.camera")
+
+
 def test_a_save_shows_its_outcome_a_broken_file_its_error_and_a_fix_recovers(page, server):
     shown = _picture(page)
     assert page.inner_text("#outcome") == "success"
+    # the user turns the machine to look at it from another side, then saves: the new
+    # picture keeps that camera (it once went back to the first framing at every save)
+    framed = _camera(page)
+    box = page.locator("iframe.front").bounding_box()
+    x, y = box["x"] + box["width"] / 2, box["y"] + box["height"] / 2
+    page.mouse.move(x, y)
+    page.mouse.down()
+    page.mouse.move(x + 160, y + 40, steps=8)
+    page.mouse.up()
+    page.wait_for_timeout(100)
+    turned = _camera(page)
+    assert not np.allclose(turned["position"], framed["position"], atol=1e-4)
     start = time.perf_counter()
     server.file.write_text(server.original.replace(TRACK, FAILING))
     _next_picture(page, shown)
     print(f"save to picture: {time.perf_counter() - start:.2f} s")
     assert page.inner_text("#outcome") == "failure"
+    kept = _camera(page)
+    assert np.allclose(kept["position"], turned["position"], atol=1e-6)
+    assert np.allclose(kept["target"], turned["target"], atol=1e-6)
+    _viewer(page).locator("body").evaluate("() => window.rgmcadViewer.resetView()")
+    reset = np.asarray(_camera(page)["position"])  # this picture's own framing (its bounds
+    assert (np.linalg.norm(reset - framed["position"])  # moved a little with the layout)
+            < 0.2 * np.linalg.norm(reset - turned["position"]))
     assert "fails at last_dom_topples" in page.inner_text("#fails")
     failed = _viewer(page).locator(".events [data-state='failure']")
     assert failed.get_attribute("data-event") == "last_dom_topples"  # the viewer's own timeline

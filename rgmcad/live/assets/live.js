@@ -139,8 +139,19 @@
     document.body.dataset.sweep = s.done ? 'done' : 'running';
   }
 
+  // The next picture keeps the camera, speed, loop and names the user left on the last one,
+  // as long as it shows the same kind of scene (one layout, or two side by side); it plays
+  // from its start, since it is a new run.
+  let shownKind = '';
+  function carryView(from, to, kind) {
+    const old = from && from !== to && from.contentWindow && from.contentWindow.rgmcadViewer;
+    const next = to.contentWindow && to.contentWindow.rgmcadViewer;
+    if (old && next && next.setView && kind === shownKind) next.setView(old.view);
+    shownKind = kind;
+  }
+
   // the frame's page is ready once the viewer says so (or it has no viewer: the waiting page)
-  function watchFrame(frame, version) {
+  function watchFrame(frame, version, kind) {
     const check = () => {
       if (version !== loading) return;  // a newer result is on its way
       const doc = frame.contentDocument;
@@ -148,6 +159,7 @@
       const plain = doc && doc.readyState === 'complete' && !root && !doc.getElementById('rgmcad-replay-data');
       if (plain || (root && (root.dataset.ready === '1' || root.dataset.error))) {
         const front = ui.frames.find((f) => f.classList.contains('front'));
+        carryView(front, frame, kind);
         frame.classList.add('front');
         if (front !== frame) {
           front.classList.remove('front');
@@ -165,7 +177,8 @@
     loading = version;
     const front = ui.frames.find((f) => f.classList.contains('front'));
     const back = ui.frames.find((f) => f !== front);
-    back.onload = () => { if (back.src.endsWith(`v=${version}`)) watchFrame(back, version); };
+    const kind = state && state.compare ? `beside ${state.compare.layout}` : 'one';
+    back.onload = () => { if (back.src.endsWith(`v=${version}`)) watchFrame(back, version, kind); };
     back.src = `/view?v=${version}`;
   }
 

@@ -299,6 +299,26 @@ window.rgmcadViewer = {
   get camera() {
     return { position: camera.position.toArray(), target: controls.target.toArray(), up: camera.up.toArray() };
   },
+  // a view carried over from another page of the same machine (the live page's next
+  // picture): camera, speed, loop and names as the user left them; the reset button still
+  // returns to this page's own framing
+  get view() {
+    return { camera: this.camera, speed: state.speed, loop: ui.loop.checked, names: !tags.hidden };
+  },
+  setView: (v) => {
+    if (v.camera) {
+      camera.position.fromArray(v.camera.position);
+      controls.target.fromArray(v.camera.target);
+      keepAboveFloor();
+      controls.update();
+    }
+    if (v.speed) {
+      state.speed = v.speed;
+      for (const b of ui.speeds) b.classList.toggle('on', Number(b.dataset.speed) === v.speed);
+    }
+    if (v.loop !== undefined) ui.loop.checked = v.loop;
+    if (v.names !== undefined) showNames(v.names);
+  },
   floor,
   resetView: () => controls.reset(),
   showNames,
