@@ -5,7 +5,12 @@ it, and ``rgmcad template --bom-json`` prints it."""
 
 from __future__ import annotations
 
+import atexit
+import functools
 import json
+import shutil
+import tempfile
+from pathlib import Path
 
 import numpy as np
 import pypdfium2 as pdfium
@@ -105,25 +110,36 @@ def test_balls_of_one_size_and_mass_share_a_line():
     assert len(keys) == len(set(keys))
 
 
-def _template(tmp_path, *extra):
-    return cli_output(["template", "ballrun", "--layout", "solved", "--out",
-                       str(tmp_path / "t"), *extra])
-
-
-def test_bom_json_parses_and_the_pdf_has_its_pages(tmp_path):
-    code, out, err = _template(tmp_path, "--bom-json")
+@functools.cache
+def made_template():
+    """``(folder, JSON of --bom-json)`` of ballrun's solved layout's template, made once per
+    process for this module and tests/test_assembly_steps.py (removed at exit)."""
+    folder = Path(tempfile.mkdtemp(prefix="rgmcad-bom-test-"))
+    atexit.register(shutil.rmtree, folder, ignore_errors=True)
+    code, out, err = cli_output(["template", "ballrun", "--layout", "solved", "--out",
+                                 str(folder), "--bom-json"])
     assert code == 0, err
-    data = json.loads(out)
+    return folder, json.loads(out)
+
+
+def pdf_text(folder) -> list[str]:
+    doc = pdfium.PdfDocument(str(folder / "template.pdf"))
+    try:
+        return [doc[i].get_textpage().get_text_range() for i in range(len(doc))]
+    finally:
+        doc.close()
+
+
+def test_bom_json_parses_and_the_pdf_has_its_page():
+    folder, data = made_template()
     assert data["scenario"] == "ballrun" and data["layout"] == "solved"
     kinds = {line["kind"] for line in data["lines"]}
     assert {"ball", "printed", "cut", "paper", "tape"} <= kinds
-    pages = len(pdfium.PdfDocument(str(tmp_path / "t" / "template.pdf")))
-    assert [line["count"] for line in data["lines"] if line["kind"] == "paper"] == [pages]
-    text = [pdfium.PdfDocument(str(tmp_path / "t" / "template.pdf"))[i].get_textpage()
-            .get_text_range() for i in range(pages)]
+    text = pdf_text(folder)
+    assert [line["count"] for line in data["lines"] if line["kind"] == "paper"] == [len(text)]
     bom = [i for i, t in enumerate(text) if "bill of materials" in t]
     assert len(bom) == 1 and "16 mm across" in text[bom[0]]
-    assert all((tmp_path / "t" / f).is_file() for line in data["lines"] for f in line["files"])
+    assert all((folder / f).is_file() for line in data["lines"] for f in line["files"])
 
 
 @pytest.mark.parametrize("argv, word", [

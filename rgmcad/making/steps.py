@@ -203,38 +203,57 @@ def _piece_distances(piece, points: np.ndarray) -> np.ndarray:
     return signed_distances(piece, points)
 
 
-def _touching(a, b, gap: float) -> bool:
-    """Whether bodies ``a`` and ``b`` come within ``gap`` m of each other: a vertex of one's
-    mesh within ``gap`` of a collision piece of the other."""
+UP = 0.5
+"""A contact whose normal has at least this upward component (cosine) holds the upper part."""
+
+
+def _contacts(pts: np.ndarray, q, gap: float) -> np.ndarray:
+    """(k, 3) world normals of body ``q``'s collision pieces at those of the world points
+    ``pts`` (n, 3) that lie within ``gap`` m of them (gradients of the signed distance)."""
     from rgmcad.geometry import invert, transform_points
 
+    out = []
+    eps = 1e-5
+    for piece in q.built.pieces:
+        frame = q.pose @ piece.frame
+        local = transform_points(invert(frame), pts)
+        near = local[_piece_distances(piece, local) <= gap]
+        if not len(near):
+            continue
+        grad = np.stack([_piece_distances(piece, near + eps * e)
+                         - _piece_distances(piece, near - eps * e) for e in np.eye(3)], axis=1)
+        grad /= np.maximum(np.linalg.norm(grad, axis=1, keepdims=True), 1e-12)
+        out.append(grad @ frame[:3, :3].T)
+    return np.vstack(out) if out else np.zeros((0, 3))
+
+
+def _held_from_below(a, b, gap: float) -> bool:
+    """Whether body ``b`` holds body ``a`` up: they come within ``gap`` m (a vertex of one's
+    mesh near a collision piece of the other) where ``b``'s surface faces up (or ``a``'s
+    faces down), at least :data:`UP`."""
     va, vb = a.world_vertices(), b.world_vertices()
     if np.any(va.min(0) > vb.max(0) + gap) or np.any(vb.min(0) > va.max(0) + gap):
         return False
-    for pts, q in ((va, b), (vb, a)):
-        for piece in q.built.pieces:
-            local = transform_points(invert(q.pose @ piece.frame), pts)
-            if _piece_distances(piece, local).min() <= gap:
-                return True
-    return False
+    if np.any(_contacts(va, b, gap)[:, 2] >= UP):
+        return True
+    return bool(np.any(_contacts(vb, a, gap)[:, 2] <= -UP))
 
 
 def rests_on_body(scene, name: str, candidates: Sequence[str], gap: float = TOUCH_M) -> list[str]:
-    """Those of ``candidates`` (body names) that body ``name`` rests on: they touch it
-    (within ``gap`` m) and a static one holds a moving one, or, both static or both moving,
-    the candidate's lowest point is lower (to the millimetre)."""
+    """Those of ``candidates`` (body names) that body ``name`` rests on: their lowest point
+    is lower (to the millimetre) and they hold it from below, within ``gap`` m (a part
+    leaning against another sideways rests on neither, nor do blocks side by side). A hinged
+    body hangs on its axle: it rests on static bodies only."""
     body = scene.bodies[name]
+    hinged = any(h.moving == name for h in scene.hinges)
     low = round(float(body.world_vertices()[:, 2].min()) * 1000.0)
     out = []
     for other in candidates:
         b = scene.bodies[other]
-        if other == name or b.plane or b.object == body.object:
+        if other == name or b.plane or b.object == body.object or (hinged and not b.static):
             continue
-        if b.static != body.static:
-            below = b.static
-        else:
-            below = round(float(b.world_vertices()[:, 2].min()) * 1000.0) < low
-        if below and _touching(body, b, gap):
+        lower = round(float(b.world_vertices()[:, 2].min()) * 1000.0) < low
+        if lower and _held_from_below(body, b, gap):
             out.append(other)
     return out
 

@@ -39,6 +39,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from rgmcad.geometry import ANGLE_KEYS, POSE_KEYS
+from rgmcad.making.steps import placement_order  # the build order, shared with the steps
 from rgmcad.scene.model import FRAME
 
 
@@ -211,21 +212,6 @@ def frame_notes(scenario, scene, tolerances, rooms=None, push=None) -> list[Fram
 
 
 # --- scene -> template inputs ---------------------------------------------------------------------
-
-
-def placement_order(scenario, scene) -> list[str]:
-    """Names of the scene's non-plane bodies in build order (see the module docstring)."""
-    hinged = {h.moving for h in scene.hinges}
-    trigger = set(scenario.events[scenario.root_event].objects.values())
-    keys = {}
-    for index, body in enumerate(scene.bodies.values()):
-        if body.plane:
-            continue
-        tier = (0 if body.static else 1 if body.name in hinged
-                else 3 if body.object in trigger else 2)
-        lowest_mm = round(float(body.world_vertices()[:, 2].min()) * 1000.0)
-        keys[body.name] = (tier, lowest_mm, index)
-    return sorted(keys, key=keys.__getitem__)
 
 
 def template_inputs(scenario, scene, tolerances=None, push=None):
