@@ -1,0 +1,129 @@
+"""Supports for raised static parts (rgmcad.making): which parts are raised, the stands'
+geometry, and that stands stay clear of moving bodies without changing outcomes."""
+
+from functools import cache
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from rgmcad.making.clearance import ClearanceSettings, plan_supports
+from rgmcad.making.placement import make_site
+from rgmcad.making.stands import card_net, write_stand_files
+from rgmcad.making.supports import base_planes, holdings, raised_parts
+from rgmcad.scene.bodies import load_parts, make_scene
+from rgmcad.scene.layout_files import resolve_layout
+from rgmcad.scene.loader import load_scenario
+
+ROOT = Path(__file__).resolve().parent.parent
+SLOPE = ROOT / "tests" / "data" / "raised_slope.toml"
+
+
+@cache
+def _loaded(path, layout):
+    scenario = load_scenario(path)
+    parts = load_parts(scenario)
+    values = resolve_layout(scenario, layout, None)[1]
+    return scenario, parts, values
+
+
+@cache
+def _plan(path, layout, runs):
+    scenario, parts, values = _loaded(path, layout)
+    return plan_supports(scenario, values, parts, ClearanceSettings(runs=runs))
+
+
+def _scene(path, layout="initial"):
+    scenario, parts, values = _loaded(path, layout)
+    return make_scene(scenario, values, parts)
+
+
+def test_raised_parts_are_the_floating_static_ones():
+    held = {h.part.name: h for h in holdings(_scene(SLOPE))}
+    assert set(held) == {"track", "plank", "block"}  # the ball moves, the floor is a plane
+    assert held["block"].held_by == "floor"
+    assert held["track"].raised and held["plank"].raised
+    assert held["plank"].gap == pytest.approx(0.05 - 0.5 * (0.1 * np.sin(np.radians(12))
+                                                            + 0.006 * np.cos(np.radians(12))),
+                                              abs=1e-4)
+
+
+def test_a_hinged_parts_base_and_a_touching_part_count():
+    held = {h.part.name: h for h in holdings(_scene(ROOT / "scenarios" / "branching.toml",
+                                                    "solved"))}
+    assert held["lever"].part.bodies == ("lever.axle",)  # the fixed base, not the plank
+    assert held["lever"].raised
+    assert held["track"].held_by == "part support"  # resting on a held part
+
+
+def test_a_layout_without_planes_is_built_against_a_virtual_board():
+    (plane,) = base_planes(_scene(ROOT / "scenarios" / "teapot.toml", "solved"))
+    assert plane.virtual and plane.normal.tolist() == [0.0, -1.0, 0.0]
+
+
+def test_stand_meets_the_tilted_face_and_rests_flat():
+    scene = _scene(SLOPE)
+    for holding in raised_parts(scene):
+        (stand, *_) = make_site(scene, holding).choose(1)
+        mesh = stand.mesh()
+        assert mesh.is_watertight and mesh.is_winding_consistent and mesh.volume > 0
+        base = stand.footprint()
+        assert np.allclose(base[:, 2], 0.0, atol=1e-9)  # flat on the floor
+        assert np.allclose(mesh.face_normals[:2], [0, 0, -1])
+        body = scene.bodies[holding.part.bodies[0]]
+        top = stand.vertices()[4:]
+        n = np.cross(top[1] - top[0], top[3] - top[0])
+        n /= np.linalg.norm(n)
+        above = (body.world_vertices() - top[0]) @ n
+        assert above.min() == pytest.approx(0.0, abs=2e-4)  # touches the part's face ...
+        assert above.min() > -2e-4  # ... and stays under it
+    assert {round(s.tilt_deg) for h in raised_parts(scene)
+            for s in make_site(scene, h).choose(1)} == {25, 12}
+
+
+def test_card_net_strip_is_the_perimeter():
+    scene = _scene(SLOPE)
+    (stand, *_) = make_site(scene, raised_parts(scene)[0]).choose(1)
+    kind, strip = card_net(stand)[0]
+    length, width = stand.size
+    assert kind == "cut" and np.allclose(strip[0], strip[-1])
+    assert strip[:, 0].max() == pytest.approx(2000 * (length + width) + 8.0)
+
+
+@pytest.mark.parametrize("path, layout", [(SLOPE, "initial"),
+                                          (ROOT / "scenarios" / "simple.toml", "solved")])
+def test_stands_clear_of_moving_bodies_and_outcomes_unchanged(path, layout):
+    plan = _plan(path, layout, 4)
+    assert plan.raised and not plan.unsupported
+    assert {s.part for s in plan.stands} == {h.part.name for h in plan.raised}
+    assert len(plan.checks) == 5  # the nominal run and 4 perturbed runs
+    assert not plan.touched
+    assert not plan.changed
+
+
+def test_stand_files(tmp_path):
+    plan = _plan(SLOPE, "initial", 4)
+    written = write_stand_files(plan.stands, tmp_path, step=False)
+    import trimesh
+
+    stl = trimesh.load(tmp_path / "S1.stl")
+    assert stl.is_watertight
+    assert stl.bounds[0, 2] == pytest.approx(0.0, abs=1e-6)  # world millimetres, on the floor
+    assert {p.suffix for p in written} == {".stl", ".svg"}
+
+
+@pytest.mark.slow
+def test_cadquery_solid_is_the_mesh(tmp_path):
+    import trimesh
+
+    plan = _plan(SLOPE, "initial", 4)
+    write_stand_files(plan.stands, tmp_path)
+    import cadquery as cq
+
+    for stand in plan.stands:
+        shape = cq.importers.importStep(str(tmp_path / f"{stand.label}.step")).val()
+        assert shape.Volume() == pytest.approx(stand.mesh().volume * 1e9, rel=1e-6)
+        cq.exporters.export(shape, str(tmp_path / "cq.stl"))
+        mesh = trimesh.load(tmp_path / "cq.stl")
+        assert mesh.is_watertight
+        assert mesh.bounds[0, 2] == pytest.approx(0.0, abs=1e-3)
