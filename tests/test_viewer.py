@@ -176,7 +176,9 @@ def test_optimize_writes_a_report_page(optimized):
         unit = "deg" if f.unit == "deg" else "mm"
         k = 1.0 if unit == "deg" else 1000.0
         assert f"{summary['values'][f.name] * k:.1f} {unit}" in text
-    assert text.count("data:image/png;base64,") == 3  # slice, robustness, history
+    steps = text.count('alt="step ')  # the assembly steps' pictures (rgmcad.viewer.making)
+    assert steps >= 3 and text.count("data:image/png;base64,") == 3 + steps  # and 3 figures
+    assert "<h2>Bill of materials</h2>" in text and "## Assembly steps" in (run / "report.md").read_text()
     assert 'href="layout.json"' in text
 
 

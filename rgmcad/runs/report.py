@@ -138,9 +138,9 @@ def placement_lines(s: dict) -> list[str]:
     return lines
 
 
-def report_markdown(scenario, s: dict, low, high) -> str:
+def report_markdown(scenario, s: dict, low, high, making=()) -> str:
     """``report.md`` of a run from its summary (``result.json``); ``low``, ``high`` (d,): the
-    parameters' ranges, real units."""
+    parameters' ranges, real units; ``making``: lines (the first blank) put before the plots."""
     lines = [f"# {scenario.name}: optimised layout", "",
              f"- run: `{s['run']}` (seed {s['seed']}, budget {s['budget']})",
              f"- layout file: `{s['layout']}` (`--layout` of every command)",
@@ -202,7 +202,7 @@ def report_markdown(scenario, s: dict, low, high) -> str:
                   "|---|---|---|"]
         for c in s["verification"]:
             lines.append(f"| {c['source']} | {c['success_rate']:.2f} | {c['valid_copies']} |")
-    lines += ["", "## Plots", "", f"![probability slice]({SLICE_PLOT})", "",
+    lines += [*making, "", "## Plots", "", f"![probability slice]({SLICE_PLOT})", "",
               *([] if s.get("hand") else [f"![robustness]({ROBUSTNESS_PLOT})", ""]),
               f"![exploration]({PROGRESS_PLOT})", ""]
     return "\n".join(lines)

@@ -20,13 +20,16 @@ from rgmcad.runs.hand_text import hand_headline, weak_link_lines
 from rgmcad.runs.report import (
     HAND_PLOT,
     PROGRESS_PLOT,
+    REPORT_FILE,
     ROBUSTNESS_PLOT,
     SLICE_PLOT,
+    report_markdown,
     side_texts,
     tolerance_paragraphs,
     user_scale,
 )
 from rgmcad.runs.store import RESULT
+from rgmcad.viewer.making import making_report
 from rgmcad.viewer.page import html_page, replay_section
 from rgmcad.viewer.recording import record_replay, replay_payload
 
@@ -64,9 +67,11 @@ def write_run_report(run_dir: str | Path, scenario_path: str | Path, *,
                      parts_dir: str | Path | None = None) -> Path:
     """Write ``run_dir/report.html`` for the finished run in ``run_dir`` of the scenario at
     ``scenario_path`` (a file or a shipped scenario's name); returns its path."""
-    from rgmcad.scene.bodies import load_parts
+    from rgmcad.making.ball_mass import read_cached
+    from rgmcad.scene.bodies import load_parts, make_scene
     from rgmcad.scene.design_space import bounds
     from rgmcad.scene.loader import load_scenario
+    from rgmcad.shipped import scenario_path as shipped_path
 
     run_dir = Path(run_dir)
     summary = json.loads((run_dir / RESULT).read_text())
@@ -78,11 +83,15 @@ def write_run_report(run_dir: str | Path, scenario_path: str | Path, *,
     payload = None if replay is None else replay_payload(replay)
     low, high = bounds(scenario)
     title = f"{scenario.name}: optimised layout"
+    making = making_report(scenario, make_scene(scenario, values, parts), run_dir, read_cached(
+        run_dir, shipped_path(scenario_path), values))  # the bill and the steps, both reports
+    write_atomic(run_dir / REPORT_FILE, report_markdown(scenario, summary, low, high,
+                                                        making.markdown))
     body = [f"<h1>{escape(title)}</h1>", _overview(summary, result),
             "<h2>Replay of the optimised layout</h2>",
             replay_section(payload) if payload else
             "<p>The layout is invalid (its parts overlap), so there is nothing to replay.</p>",
-            _events(summary, result), _placement(scenario, summary, low, high),
+            _events(summary, result), _placement(scenario, summary, low, high), making.html,
             _figures(run_dir), _template(run_dir, _scenario_argument(scenario_path), summary)]
     path = run_dir / REPORT_HTML
     write_atomic(path, html_page(title, "\n".join(body), payload))  # whole, or the old page

@@ -1,0 +1,82 @@
+"""The bill of materials and the assembly steps of a run's layout, for its reports: a section
+of ``report.html`` (the steps' pictures inline) and lines of ``report.md`` (the pictures as
+``assembly/step-NN.png`` beside it).
+
+The same bill (:mod:`rgmcad.making.bom`, without the template's paper and tape, which the
+template's own page adds) and the same steps (:mod:`rgmcad.making.steps`) as the template's
+pages, the pictures seen from the side a template of the layout is seen from by default.
+"""
+
+from __future__ import annotations
+
+import base64
+import io
+from dataclasses import dataclass
+from html import escape
+from pathlib import Path
+
+import numpy as np
+
+STEPS_DIR = "assembly"
+"""Folder of the steps' pictures, in the run directory."""
+PICTURE_PX = (320, 240)
+"""Size of a step's picture in the reports, pixels."""
+
+
+@dataclass(frozen=True)
+class MakingReport:
+    """``html``: the section of ``report.html``; ``markdown``: lines of ``report.md``, the
+    first one blank."""
+
+    html: str
+    markdown: tuple[str, ...]
+
+
+def _png(picture: np.ndarray) -> bytes:
+    from PIL import Image
+
+    out = io.BytesIO()
+    Image.fromarray(np.asarray(picture, np.uint8)).save(out, format="PNG", optimize=True)
+    return out.getvalue()
+
+
+def making_report(scenario, scene, run_dir: str | Path, ball_mass=None) -> MakingReport:
+    """The bill and the steps of the posed ``scene`` (``ball_mass``: the measurement kept in
+    the run, :func:`rgmcad.making.ball_mass.read_cached`), the steps' pictures written to
+    ``run_dir/assembly/``."""
+    from rgmcad.files import write_atomic
+    from rgmcad.making.bom import bill_of_materials
+    from rgmcad.making.steps import assembly_steps, render_steps
+
+    bill = bill_of_materials(scenario, scene, ball_mass=ball_mass)
+    steps = assembly_steps(scenario, scene)
+    pictures = render_steps(scenario, scene, steps, width=PICTURE_PX[0], height=PICTURE_PX[1])
+    folder = Path(run_dir) / STEPS_DIR
+    folder.mkdir(parents=True, exist_ok=True)
+    md = ["", "## Bill of materials", "",
+          "What to buy or make (the template adds its paper and tape; `rgmcad template "
+          "--bom-json` prints it all):", ""]
+    md += [f"  - {line.strip()}" if line.startswith("  ") else f"- **{line}**"
+           for line in bill.text_lines()]
+    md += ["", "## Assembly steps", "",
+           "In the template's order (the numbers of the parts on its sheets); orange: what the "
+           "step places.", ""]
+    items = []
+    for step, picture in zip(steps, pictures, strict=True):
+        data = _png(picture)
+        name = f"{STEPS_DIR}/step-{step.number:02d}.png"
+        write_atomic(Path(run_dir) / name, data)
+        md += [f"{step.number}. {step.text}", "", f"   ![step {step.number}]({name})", ""]
+        items.append(f'<li><img src="data:image/png;base64,{base64.b64encode(data).decode()}" '
+                     f'alt="step {step.number}" width="{PICTURE_PX[0]}"><br>'
+                     f"{escape(step.text)}</li>")
+    rows = "".join(f"<tr><td>{line.count}</td><td>{escape(line.kind)}</td>"
+                   f"<td>{escape(line.what)}</td><td>{escape(line.note)}</td></tr>"
+                   for line in bill.lines)
+    html = ("<h2>Bill of materials</h2><p>What to buy or make; the printed template adds its "
+            "paper and tape.</p><table><tr><th>count</th><th>kind</th><th>what</th>"
+            f"<th>note</th></tr>{rows}</table>"
+            "<h2>Assembly steps</h2><p>In the template's order (the numbers of the parts on its "
+            "sheets); orange: what the step places.</p>"
+            f'<ol class="steps">{"".join(items)}</ol>')
+    return MakingReport(html, tuple(md))
