@@ -214,6 +214,18 @@ def test_a_bad_start_is_refused_in_one_line_before_any_simulation(
     assert not run.exists()
 
 
+@pytest.mark.parametrize("start", ["", ".", "scenarios"])
+def test_a_start_that_names_nothing_is_refused_from_python_too(tmp_path, start):
+    # the CLI refuses an empty --start; from Python, "" once ran from the initial layout
+    # under the label '' (Path("") is the current folder, which exists)
+    from rgmcad.errors import UsageError
+    from rgmcad.runs.workflow import optimize_scenario
+
+    with pytest.raises(UsageError, match="--start.*unknown layout"):
+        optimize_scenario(SIMPLE, seed=0, run_dir=tmp_path / "run", starts=[start])
+    assert not (tmp_path / "run").exists()
+
+
 @pytest.mark.slow  # CI's second pass (.ci/run): the default suite stays under 5 minutes
 def test_an_interrupted_run_from_a_start_resumes_to_the_same_result(tmp_path):
     from rgmcad.runs.workflow import optimize_scenario

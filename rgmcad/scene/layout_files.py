@@ -53,11 +53,11 @@ def resolve_layout(scenario, layout: str | None, vector: str | None):
         if not np.all(np.isfinite(v)) or np.any(v < 0) or np.any(v > 1):
             raise UsageError("--vector", "", "values must be numbers in [0, 1]")
         return "vector", values_from_vector(scenario, v)
-    name = layout or "initial"
+    name = "initial" if layout is None else layout  # "" names nothing (Path("") is ".")
     if name in scenario.layouts:
         return name, values_from_mapping(scenario, scenario.layouts[name])
     path = Path(name)
-    if not path.exists():
+    if not name or not path.is_file():
         raise ScenarioError(where, "layouts", f"unknown layout {name!r}: not a layout of this "
                             f"scenario ({', '.join(scenario.layouts)}) nor a file")
     return name, load_layout_file(scenario, path)
