@@ -84,6 +84,36 @@ def test_a_support_comes_right_before_the_part_it_holds():
         assert steps[k + 1].bodies == (s.holds,)
 
 
+def _stand(label: str, part: str, x: float):
+    from rgmcad.making.stands import Stand
+
+    frame = np.eye(4)
+    frame[:3, 3] = (x, 0.0, 0.0)
+    return Stand(label, part, "floor", frame,
+                 np.array([[0.0, 0.0], [0.03, 0.0], [0.03, 0.02], [0.0, 0.02]]),
+                 np.array([0.0, 0.0, 0.05]))
+
+
+def test_stands_are_a_line_of_the_bill_and_a_step_with_a_picture():
+    from rgmcad.making.bom import bill_of_materials, support_lines
+    from rgmcad.making.steps import supports_of
+
+    scenario, scene = shipped("ballrun")
+    stands = [_stand("S1", "top_track", -0.1), _stand("S2", "bottom_track", 0.1)]
+    bill = bill_of_materials(scenario, scene, supports=support_lines(stands))
+    assert [line.parts for line in bill.of("support")] == [("S1",), ("S2",)]
+    assert bill.of("support")[0].what == "stand S1, 30 x 20 mm, 50 mm high"
+    steps = assembly_steps(scenario, scene, supports_of(stands))
+    follow(scenario, scene, steps, supports_of(stands))
+    first = next(s for s in steps if s.support == "S1")
+    assert first.orders == (1,) and "Stand the support 1. S1" in first.text
+    assert min(o for s in steps for o in s.orders if s.bodies) == 3  # the stands are 1 and 2
+    k = steps.index(first)
+    pictures = render_steps(scenario, scene, steps, width=96, height=72, stands=stands)
+    orange = [int(np.sum((p[:, :, 0] > 180) & (p[:, :, 2] < 80))) for p in pictures]
+    assert orange[k] > 0
+
+
 def test_the_ball_rests_on_its_track_and_comes_after_it():
     scenario, scene = shipped("ballrun")
     assert "top_track" in rests_on(scene)["ball"]

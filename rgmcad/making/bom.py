@@ -209,6 +209,24 @@ def bill_of_materials(scenario, scene, *, supports: Sequence[BomLine] = (),
     return bill.with_paper(paper) if paper is not None else bill
 
 
+def support_lines(stands) -> list[BomLine]:
+    """A ``support`` line per stand of :mod:`rgmcad.making.stands`: its base, its height and
+    the part it holds; printed from ``LABEL.stl`` or folded from card (``LABEL-card.svg``),
+    as ``rgmcad supports`` writes them."""
+    out = []
+    for s in stands:
+        length, width = (v * 1000.0 for v in s.size)
+        h = np.asarray(s.heights(), float) * 1000.0
+        high = _mm(h.max()) if abs(h.max() - h.min()) < 0.05 else f"{_mm(h.min())} to {_mm(h.max())}"
+        out.append(BomLine("support", f"stand {s.label}, {_mm(length)} x {_mm(width)} mm, "
+                           f"{high} mm high", 1, (s.label,), (round(length, 1), round(width, 1),
+                                                             round(float(h.max()), 1)),
+                           None, f"under {s.part}; print {s.label}.stl or fold "
+                           f"{s.label}-card.svg from card",
+                           (f"{s.label}.stl", f"{s.label}-card.svg")))
+    return out
+
+
 def _ball_note(measured: Mapping | None, grams: float | None) -> str:
     if grams is None:
         return "fixed in place"

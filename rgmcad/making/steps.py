@@ -57,11 +57,18 @@ def placement_order(scenario, scene) -> list[str]:
 
 @dataclass(frozen=True)
 class Support:
-    """A support to place before the part it holds: ``name``, and ``holds`` the body name of
-    that part."""
+    """A support to place before the part it holds: ``name``, ``holds`` the body name of
+    that part, and ``what`` it is (size and height, for a person)."""
 
     name: str
     holds: str
+    what: str = ""
+
+
+def supports_of(stands) -> list[Support]:
+    """The :class:`Support` of each stand of :mod:`rgmcad.making.stands` (its ``part`` is the
+    name of the static part's first object, the name of that object's main body)."""
+    return [Support(s.label, s.part, s.describe()) for s in stands]
 
 
 @dataclass(frozen=True)
@@ -117,11 +124,13 @@ def assembly_steps(scenario, scene, supports: Sequence[Support] = (),
     """The numbered steps of building ``scene`` (a posed layout of ``scenario``).
 
     ``supports``: supports to place right before the part each holds (their bodies are not
-    in the scene); ``where``: body name -> labels of the template sheets it is drawn on,
-    named in the steps' text.
+    in the scene); the template draws them first, numbered 1, 2, ... in this order, and the
+    parts after them, so the parts' numbers here are shifted as there. ``where``: body name
+    -> labels of the template sheets it is drawn on, named in the steps' text.
     """
     order = placement_order(scenario, scene)
-    number = {name: k + 1 for k, name in enumerate(order)}
+    number = {name: k + 1 + len(supports) for k, name in enumerate(order)}
+    support_number = {s.name: k + 1 for k, s in enumerate(supports)}
     where = where or {}
     trigger = set(scenario.events[scenario.root_event].objects.values())
     runs = {name: run for run, names in scenario.runs.items() for name in names}
@@ -151,12 +160,19 @@ def assembly_steps(scenario, scene, supports: Sequence[Support] = (),
     def add(**kw):
         steps.append(Step(number=len(steps) + 1, **kw))
 
+    for s in supports:  # under a part the scene does not have: first
+        if s.holds not in number:
+            add(kind="support", support=s.name, orders=(support_number[s.name],),
+                text=f"Stand the support {support_number[s.name]}. {s.name} on its footprint"
+                     f" ({s.what or s.holds}).")
     for kind, bodies, run in groups:
         for body in bodies:
             for s in held.get(body, ()):
-                add(kind="support", support=s.name,
-                    text=f"Stand the support {s.name} on its footprint, under "
-                         f"{number[body]}. {body}.")
+                what = f" ({s.what})" if s.what else ""
+                add(kind="support", support=s.name, orders=(support_number[s.name],),
+                    text=f"Stand the support {support_number[s.name]}. {s.name} on its "
+                         "footprint, under "
+                         f"{number[body]}. {body}{what}.")
         orders = tuple(number[b] for b in bodies)
         sheets = sorted({label for b in bodies for label in where.get(b, ())})
         on = f" (sheet {', '.join(sheets)})" if sheets else ""
@@ -291,12 +307,12 @@ def _fit(scene, centre, direction, up, fov: float, aspect: float):
 
 
 def render_steps(scenario, scene, steps: Sequence[Step], normal=None, up=None,
-                 width: int = 480, height: int = 360) -> list[np.ndarray]:
+                 width: int = 480, height: int = 360, stands=()) -> list[np.ndarray]:
     """One (height, width, 3) uint8 picture per step: the parts placed up to it, seen from
     the ``normal`` side of the template plane with ``up`` (world directions) up on the
     picture (default: :func:`default_view`), a little from the builder's side; the step's
     own parts in orange (:data:`NEW`), the earlier ones grey. The camera frames the whole layout in
-    every picture."""
+    every picture. ``stands`` (:mod:`rgmcad.making.stands`) are drawn from their steps on."""
     from rgmcad.scene.palette import runs_of
     from rgmcad.sim.engine import pb
     from rgmcad.sim.render import Renderer
@@ -319,19 +335,29 @@ def render_steps(scenario, scene, steps: Sequence[Step], normal=None, up=None,
         renderer.light = (direction + 0.5 * up).tolist()
         far = np.eye(4)
         far[:3, 3] = _FAR
+        for stand in stands:  # world vertices, drawn at the origin (or far away)
+            mesh = stand.mesh()
+            shape = renderer.engine.createVisualShape(
+                pb.GEOM_MESH, vertices=mesh.vertices.tolist(),
+                indices=np.asarray(mesh.faces).ravel().tolist(), rgbaColor=EARLIER)
+            renderer.ghosts[stand.label] = renderer.engine.createMultiBody(0, -1, shape)
+            renderer.colours[stand.label] = EARLIER[:3]
+        origin = np.eye(4)
+        labels = {s.label for s in stands}
         placed: set[str] = set()
         tied: set[str] = set()
         out = []
         for step in steps:
             for name in placed:
                 renderer.engine.changeVisualShape(renderer.ghosts[name], -1, rgbaColor=EARLIER)
-            for name in step.bodies:
+            new = (*step.bodies, *([step.support] if step.support in labels else []))
+            for name in new:
                 renderer.engine.changeVisualShape(renderer.ghosts[name], -1, rgbaColor=NEW)
-            placed.update(step.bodies)
+            placed.update(new)
             if step.rope:
                 tied.add(step.rope)
-            renderer.place({n: (scene.bodies[n].pose if n in placed else far)
-                            for n in renderer.ghosts})
+            renderer.place({n: (far if n not in placed else origin if n in labels
+                                else scene.bodies[n].pose) for n in renderer.ghosts})
             for rope, beads in renderer.ropes:
                 if rope.name not in tied:
                     for bead in beads:

@@ -132,15 +132,15 @@ PICTURE_PX = (360, 270)
 
 
 def scene_making(scenario, scene, normal, up, ball_mass=None,
-                 size_px: tuple[int, int] = PICTURE_PX) -> Making:
+                 size_px: tuple[int, int] = PICTURE_PX, stands=()) -> Making:
     """The :class:`Making` of a posed scene: its bill of materials (``ball_mass``: the
     measurement of :mod:`rgmcad.making.ball_mass`, or None), its assembly steps and their
     pictures seen from the ``normal`` side of the template plane, ``up`` (world directions)
-    up."""
-    from rgmcad.making.bom import bill_of_materials
-    from rgmcad.making.steps import assembly_steps, render_steps
+    up; ``stands`` (:mod:`rgmcad.making.stands`) in both, each before the part it holds."""
+    from rgmcad.making.bom import bill_of_materials, support_lines
+    from rgmcad.making.steps import assembly_steps, render_steps, supports_of
 
-    steps = assembly_steps(scenario, scene)
-    pictures = render_steps(scenario, scene, steps, normal, up, *size_px)
-    return Making(bill_of_materials(scenario, scene, ball_mass=ball_mass), steps,
-                  tuple(pictures))
+    steps = assembly_steps(scenario, scene, supports_of(stands))
+    pictures = render_steps(scenario, scene, steps, normal, up, *size_px, stands=stands)
+    return Making(bill_of_materials(scenario, scene, ball_mass=ball_mass,
+                                    supports=support_lines(stands)), steps, tuple(pictures))
