@@ -2,10 +2,12 @@
 
 The balls of a layout (objects of the ``ball`` family that move) are given their simulated
 mass times each of :data:`FACTORS`, and the layout is built ``samples`` times at each mass
-under the same hand's and physical errors (:func:`rgmcad.runs.hand.measure_rate`, the same
-draws at every mass: common random numbers, so the rates differ by the mass alone). A mass
-keeps the figure while its rate is at most :data:`DROP` below the rate at the simulated
-mass; the range kept is the run of such factors around 1.
+under the same hand's and physical errors (the first draws of the headline rate,
+:func:`rgmcad.runs.hand.measure_rate`, the same draws at every mass: common random numbers,
+so the rates differ by the mass alone). A mass drops the figure where its rate is more than
+:data:`DROP` below the rate at the simulated mass and the draws it lost outnumber those it
+gained beyond chance (a one-sided sign test at 5 % on the paired draws); the range kept is
+the run of masses around the simulated one that do not.
 
 It costs ``samples * len(FACTORS)`` simulations, so it is measured once for a run's layout
 and kept beside it (:data:`CACHE_FILE`, keyed by the scenario file's digest and the layout's
@@ -44,38 +46,55 @@ def measure_ball_mass(scenario, values, parts, *, samples: int = 64, seed: int =
                       factors=FACTORS, hand=None, physics=None) -> dict:
     """The success rate of the layout ``values`` (real, (d,)) under a hand (default: the
     default hand) and physical errors (default: the default ranges) with the balls' mass
-    times each factor: ``{"factors", "rates": [HandRate JSON], "kept": [low, high] (factors),
-    "samples", "seed"}``. Simulated here, one process."""
-    from rgmcad.runs.hand import DEFAULT_HAND, measure_rate
+    times each factor, on the same ``samples`` draws: ``{"factors", "rates": [{"factor",
+    "rate", "interval", "successes", "samples", "lost", "gained"}], "kept": [low, high]
+    (factors), "samples", "seed", "drop"}``. ``lost``/``gained``: draws that worked at the
+    simulated mass and not at this one, and the other way round. A mass has dropped the
+    figure where its rate is more than :data:`DROP` lower and the lost draws outnumber the
+    gained ones beyond chance (one-sided sign test, 5 %). Simulated here, one process."""
+    from scipy.stats import binomtest
+
+    from rgmcad.runs.hand import DEFAULT_HAND
     from rgmcad.runs.problem import ScenarioContext
+    from rgmcad.runs.robustness import wilson_interval
     from rgmcad.scene.design_space import vector_from_values
-    from rgmcad.scene.perturbation import DEFAULT_PHYSICS
+    from rgmcad.scene.perturbation import DEFAULT_PHYSICS, PhysicsDraw
+    from rgmcad.sim.run import Outcome
 
     hand = hand or DEFAULT_HAND
-    physics = physics or DEFAULT_PHYSICS
+    ranges = hand.ranges(physics or DEFAULT_PHYSICS)
     x = vector_from_values(scenario, np.asarray(values, float))
-    rates = []
+    draws = [PhysicsDraw(ranges, seed, k) for k in range(samples)]
+    factors = [float(f) for f in factors]
+    worked = []
     for factor in factors:
         context = ScenarioContext(with_ball_mass(scenario, factor), parts)
         try:
-            def simulate(draws, context=context):
-                return [context.simulate_one(x, known_valid=True, physics=d) for d in draws]
-
-            rates.append(measure_rate(simulate, hand, physics, seed, batch=samples,
-                                      minimum=samples, maximum=samples).to_json())
+            worked.append([context.simulate_one(x, known_valid=True, physics=d).outcome
+                           is Outcome.SUCCESS for d in draws])
         finally:
             context.close()
-    factors = [float(f) for f in factors]
-    base = rates[factors.index(1.0)]["rate"]
-    ok = [r["rate"] >= base - DROP for r in rates]
-    k = factors.index(1.0)
-    low = high = k
+    base = worked[factors.index(1.0)]
+    rates, ok = [], []
+    for factor, w in zip(factors, worked, strict=True):
+        wins = sum(w)
+        low, high = wilson_interval(wins, samples)
+        lost = sum(b and not a for a, b in zip(w, base, strict=True))
+        gained = sum(a and not b for a, b in zip(w, base, strict=True))
+        rates.append({"factor": factor, "rate": wins / samples, "interval": [float(low),
+                      float(high)], "successes": wins, "samples": samples, "lost": lost,
+                      "gained": gained})
+        beyond_chance = lost > gained and binomtest(lost, lost + gained, 0.5,
+                                                    alternative="greater").pvalue < 0.05
+        ok.append(not (sum(base) - wins > DROP * samples and beyond_chance))
+    low = high = factors.index(1.0)
     while low > 0 and ok[low - 1]:
         low -= 1
     while high < len(factors) - 1 and ok[high + 1]:
         high += 1
     return {"factors": factors, "rates": rates, "kept": [factors[low], factors[high]],
-            "samples": samples, "seed": seed, "drop": DROP}
+            "samples": samples, "seed": seed, "drop": DROP, "hand": hand.to_json(),
+            "physics": ranges.to_json()}
 
 
 def cache_key(scenario_path, values) -> str:
