@@ -74,8 +74,11 @@ class Renderer:
         self.ghosts: dict[str, int] = {}
         self.colours = scene_colours(scene, runs)  # body name -> RGB in [0, 1]
         solid = [b for b in scene.bodies.values() if not b.plane]
+        shaded: dict[int, tuple] = {}  # bodies of one built part (a run's dominoes) share it
         for body in solid:
-            v, f, n = _shaded(body.built.vertices, body.built.faces)
+            if id(body.built) not in shaded:
+                shaded[id(body.built)] = _shaded(body.built.vertices, body.built.faces)
+            v, f, n = shaded[id(body.built)]
             shape = self.engine.createVisualShape(
                 pb.GEOM_MESH, vertices=v.tolist(), indices=f.ravel().tolist(),
                 normals=n.tolist(), rgbaColor=(*self.colours[body.name], 1.0),
