@@ -4,6 +4,7 @@ named by the constants the code writes them with; what each holds is said here."
 from __future__ import annotations
 
 from rgmcad.cli.export import RUN_FILES
+from rgmcad.making.ball_mass import CACHE_FILE as BALL_MASS
 from rgmcad.reference.text import table
 from rgmcad.runs.lock import LOCK_FILE
 from rgmcad.runs.outputs import LAYOUT_FILE, START_FILE
@@ -51,7 +52,11 @@ def files() -> list[tuple[str, str, str]]:
         RESULT: (RUN, "the summary, written last: its presence marks the run finished (a "
                  "finished run asked again shows it without simulating)"),
         REPORT_HTML: (COMMAND, "the page of the run: a 3D replay of the layout, its events, "
-                      "placement tolerances and figures; open it in a browser"),
+                      "placement tolerances, figures, bill of materials and assembly steps; "
+                      "open it in a browser"),
+        BALL_MASS: ("`tools/ball_mass.py`", "only once measured: how far off a ball's mass "
+                    "may be before the built-by-hand figure drops, which the template's and "
+                    "the report's bill of materials read"),
         **{name: (COMMAND, text) for name, text in cad.items()},
     }
     return [(name, who, text) for name, (who, text) in what.items()]

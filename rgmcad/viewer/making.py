@@ -1,6 +1,6 @@
 """The bill of materials and the assembly steps of a run's layout, for its reports: a section
-of ``report.html`` (the steps' pictures inline) and lines of ``report.md`` (the pictures as
-``assembly/step-NN.png`` beside it).
+of ``report.html`` (the steps' pictures inline) and lines of ``report.md`` (the steps' text;
+their pictures are in the page). Nothing is written to the run directory.
 
 The same bill (:mod:`rgmcad.making.bom`, without the template's paper and tape, which the
 template's own page adds) and the same steps (:mod:`rgmcad.making.steps`) as the template's
@@ -13,12 +13,9 @@ import base64
 import io
 from dataclasses import dataclass
 from html import escape
-from pathlib import Path
 
 import numpy as np
 
-STEPS_DIR = "assembly"
-"""Folder of the steps' pictures, in the run directory."""
 PICTURE_PX = (320, 240)
 """Size of a step's picture in the reports, pixels."""
 
@@ -40,33 +37,27 @@ def _png(picture: np.ndarray) -> bytes:
     return out.getvalue()
 
 
-def making_report(scenario, scene, run_dir: str | Path, ball_mass=None) -> MakingReport:
+def making_report(scenario, scene, ball_mass=None) -> MakingReport:
     """The bill and the steps of the posed ``scene`` (``ball_mass``: the measurement kept in
-    the run, :func:`rgmcad.making.ball_mass.read_cached`), the steps' pictures written to
-    ``run_dir/assembly/``."""
-    from rgmcad.files import write_atomic
+    the run, :func:`rgmcad.making.ball_mass.read_cached`)."""
     from rgmcad.making.bom import bill_of_materials
     from rgmcad.making.steps import assembly_steps, render_steps
 
     bill = bill_of_materials(scenario, scene, ball_mass=ball_mass)
     steps = assembly_steps(scenario, scene)
     pictures = render_steps(scenario, scene, steps, width=PICTURE_PX[0], height=PICTURE_PX[1])
-    folder = Path(run_dir) / STEPS_DIR
-    folder.mkdir(parents=True, exist_ok=True)
     md = ["", "## Bill of materials", "",
           "What to buy or make (the template adds its paper and tape; `rgmcad template "
           "--bom-json` prints it all):", ""]
     md += [f"  - {line.strip()}" if line.startswith("  ") else f"- **{line}**"
            for line in bill.text_lines()]
     md += ["", "## Assembly steps", "",
-           "In the template's order (the numbers of the parts on its sheets); orange: what the "
-           "step places.", ""]
+           "In the template's order (the numbers of the parts on its sheets); each step's "
+           "picture is in report.html.", ""]
     items = []
     for step, picture in zip(steps, pictures, strict=True):
         data = _png(picture)
-        name = f"{STEPS_DIR}/step-{step.number:02d}.png"
-        write_atomic(Path(run_dir) / name, data)
-        md += [f"{step.number}. {step.text}", "", f"   ![step {step.number}]({name})", ""]
+        md.append(f"{step.number}. {step.text}")
         items.append(f'<li><img src="data:image/png;base64,{base64.b64encode(data).decode()}" '
                      f'alt="step {step.number}" width="{PICTURE_PX[0]}"><br>'
                      f"{escape(step.text)}</li>")

@@ -83,7 +83,7 @@ def write_run_report(run_dir: str | Path, scenario_path: str | Path, *,
     payload = None if replay is None else replay_payload(replay)
     low, high = bounds(scenario)
     title = f"{scenario.name}: optimised layout"
-    making = making_report(scenario, make_scene(scenario, values, parts), run_dir, read_cached(
+    making = making_report(scenario, make_scene(scenario, values, parts), read_cached(
         run_dir, shipped_path(scenario_path), values))  # the bill and the steps, both reports
     write_atomic(run_dir / REPORT_FILE, report_markdown(scenario, summary, low, high,
                                                         making.markdown))
