@@ -127,3 +127,46 @@ def test_cadquery_solid_is_the_mesh(tmp_path):
         mesh = trimesh.load(tmp_path / "cq.stl")
         assert mesh.is_watertight
         assert mesh.bounds[0, 2] == pytest.approx(0.0, abs=1e-3)
+
+
+@pytest.mark.slow
+def test_cli_supports_writes_stands_and_a_template(tmp_path):
+    from tests._support import cli_output, run_cli
+
+    code, doc = run_cli(["supports", str(SLOPE), "--out", str(tmp_path), "--runs", "1",
+                         "--no-step", "--json"])
+    assert code == 0 and doc["runs"] == 2 and doc["runs_touched"] == 0
+    assert {s["part"] for s in doc["stands"]} == {"track", "plank"}
+    names = {Path(p).name for p in doc["files"]}
+    assert {"S1.stl", "S1-card.svg", "template.pdf", "template.svg"} <= names
+    svg = (tmp_path / "template" / "template.svg").read_text()
+    assert "S1 support of track" in svg  # the footprint's label on the sheets
+    from rgmcad.making.stands import read_stands
+
+    stands = read_stands(tmp_path / "supports.json")  # round trip
+    assert [s.footprint().round(6).tolist() for s in stands] == \
+        [s["footprint_world"] for s in doc["stands"]]
+    code, out, _ = cli_output(["export", str(SLOPE), "--out", str(tmp_path / "a.step"),
+                               "--supports", str(tmp_path / "supports.json")])
+    assert code == 0 and f"and {len(stands)} stands" in out
+
+
+def test_cli_supports_refuses_bad_input_in_one_line(tmp_path):
+    from tests._support import cli_output
+
+    code, _, err = cli_output(["supports", str(SLOPE), "--out", str(tmp_path), "--runs", "x"])
+    assert code == 2 and "--runs" in err and "Traceback" not in err
+    bad = tmp_path / "bad.json"
+    bad.write_text("{}")
+    code, _, err = cli_output(["export", str(SLOPE), "--out", str(tmp_path / "a.step"),
+                               "--supports", str(bad)])
+    assert code == 2 and "--supports" in err and len(err.strip().splitlines()) == 1
+
+
+def test_report_has_a_supports_section():
+    from rgmcad.runs.supports_text import supports_lines
+
+    doc = _plan(SLOPE, "initial", 4).to_json()
+    text = "\n".join(supports_lines(doc))
+    assert "## Supports" in text and "| S1 | " in text and "2 static parts are raised" in text
+    assert supports_lines(None) == []

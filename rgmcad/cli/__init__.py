@@ -28,6 +28,8 @@ COMMANDS: dict[str, tuple[str, str]] = {
                     "build the parts of the shipped scenarios (STEP, STL, GLB, collision pieces)"),
     "template": ("template",
                  "write a printable 1:1 tiled assembly template (PDF and SVG) of a layout"),
+    "supports": ("supports", "design stands for a layout's raised static parts, clear of the "
+                 "moving parts' paths (STL, STEP, card nets)"),
     "verify-print": ("verify_print",
                      "measure the scale a template sheet was printed at, from a scan or photo"),
     "optimize": ("optimize",

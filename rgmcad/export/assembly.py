@@ -16,6 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from rgmcad.files import naming
+from rgmcad.making.stands import stand_solid
 from rgmcad.parts.family import MAIN
 from rgmcad.scene.bodies import Scene
 
@@ -26,6 +27,7 @@ EXPORT_SUFFIXES = (".step", ".stp", ".glb")
 
 _STATIC = (0.72, 0.70, 0.66)
 _MOVING = (0.85, 0.33, 0.10)
+_SUPPORT = (0.55, 0.62, 0.75)
 
 
 def _location(pose: np.ndarray):
@@ -79,9 +81,10 @@ def _mesh(solids) -> None:
         BRepMesh_IncrementalMesh(solid.wrapped, GLB_DEFLECTION_M, False, GLB_ANGLE_RAD, True)
 
 
-def export_layout(scenario, scene: Scene, path: Path) -> Path:
+def export_layout(scenario, scene: Scene, path: Path, stands=()) -> Path:
     """Write ``scene`` (a posed layout of ``scenario``) as one assembly to ``path``: STEP in
     millimetres for ``.step``/``.stp``, glTF binary (metres, as glTF wants) for ``.glb``.
+    ``stands`` (:class:`~rgmcad.making.stands.Stand`) join it as ``support S1``, ... .
 
     Returns the path written. The file appears complete or not at all.
     """
@@ -98,6 +101,9 @@ def export_layout(scenario, scene: Scene, path: Path) -> Path:
         body = scene.bodies[name]
         colour = cq.Color(*(_STATIC if body.static else _MOVING))
         assembly.add(solid, name=name, loc=_location(body.pose), color=colour)
+    for stand in stands:
+        solids[f"support {stand.label}"] = solid = stand_solid(stand, mm=1.0)
+        assembly.add(solid, name=f"support {stand.label}", color=cq.Color(*_SUPPORT))
     partial = path.with_name(f".{path.stem}.partial{suffix}")  # renamed when complete
     with naming(path):
         if suffix == ".glb":

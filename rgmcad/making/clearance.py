@@ -97,6 +97,17 @@ class SupportPlan:
     def changed(self) -> list[RunCheck]:
         return [c for c in self.checks if not c.same]
 
+    def to_json(self) -> dict:
+        """JSON-ready: the stands (:meth:`~rgmcad.making.stands.Stand.to_json`), the parts
+        and what holds each, the parts left without a stand and the run checks' counts."""
+        return {"stands": [s.to_json() for s in self.stands],
+                "parts": [{"name": h.part.name, "held_by": h.held_by or None,
+                           "base": h.base.name, "gap_mm": round(h.gap * 1000, 1)}
+                          for h in self.holdings],
+                "unsupported": [{"part": p, "why": why} for p, why in self.unsupported],
+                "runs": len(self.checks), "runs_touched": len(self.touched),
+                "runs_changed": len(self.changed), "rounds": self.rounds}
+
     def summary(self) -> str:
         n = len(self.checks)
         return (f"{len(self.raised)} raised static parts, {len(self.stands)} stands, "

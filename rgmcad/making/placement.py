@@ -145,7 +145,9 @@ class Site:
         target = np.array([target_u, 0.5 * (cv.min() + cv.max())])
         cu = np.nonzero(self.contact.any(axis=1))[0]
         pad = 4.0 / cell_mm  # a stand may overhang the part's face by 2 mm a side
-        extent = np.array([cu.max() - cu.min(), cv.max() - cv.min()]) + 1 + pad
+        smallest = np.array(self.settings.sizes_mm[-1]) / cell_mm  # always allowed
+        extent = np.maximum(np.array([cu.max() - cu.min(), cv.max() - cv.min()]) + 1 + pad,
+                            smallest)
         need = self.settings.min_contact_mm2 / cell_mm ** 2
         for length, width in self.settings.sizes_mm:
             ni, nj = int(round(length / cell_mm)), int(round(width / cell_mm))

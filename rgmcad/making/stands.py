@@ -18,7 +18,8 @@ import numpy as np
 
 from rgmcad.geometry import matmul, transform_points
 
-__all__ = ["Stand", "card_net", "write_stand_files", "stand_solid", "MIN_HEIGHT"]
+__all__ = ["Stand", "card_net", "write_stand_files", "stand_solid", "stand_from_json",
+           "read_stands", "MIN_HEIGHT"]
 
 MIN_HEIGHT = 0.001
 """m: a stand's top is at least this far from its base at every corner."""
@@ -104,24 +105,57 @@ class Stand:
                 f"on the {self.base}, {h.min():.1f} to {h.max():.1f} mm high{tilt}")
 
     def to_json(self) -> dict:
-        """JSON-ready summary (millimetres and degrees, world footprint in metres)."""
+        """JSON-ready: a summary (millimetres and degrees, world footprint in metres) and the
+        geometry :func:`stand_from_json` reads back (``frame``, ``corners``, ``top``, SI)."""
         length, width = self.size
         h = self.heights() * 1000
         return {"label": self.label, "part": self.part, "base": self.base,
                 "length_mm": round(length * 1000, 1), "width_mm": round(width * 1000, 1),
                 "height_mm": [round(float(h.min()), 1), round(float(h.max()), 1)],
                 "tilt_deg": round(self.tilt_deg, 1),
-                "footprint_world": self.footprint().round(6).tolist()}
+                "footprint_world": self.footprint().round(6).tolist(),
+                "frame": self.frame.tolist(), "corners": self.corners.tolist(),
+                "top": self.top.tolist()}
 
 
-def stand_solid(stand: Stand):
-    """The stand as a CadQuery solid in world millimetres: the base rectangle extruded past
-    the top, cut by the top plane (CadQuery is imported here, not at module load)."""
+def read_stands(path: Path) -> list[Stand]:
+    """The stands of a ``supports.json`` (``rgmcad supports``); ValueError saying what is
+    wrong with the file."""
+    import json
+
+    try:
+        data = json.loads(Path(path).read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise ValueError(f"cannot read the stands ({exc})") from None
+    if not isinstance(data, dict) or not isinstance(data.get("stands"), list):
+        raise ValueError("expected the supports.json of `rgmcad supports` (a `stands` list)")
+    return [stand_from_json(item) for item in data["stands"]]
+
+
+def stand_from_json(data) -> Stand:
+    """A :class:`Stand` from :meth:`Stand.to_json`; ValueError naming what is wrong."""
+    try:
+        stand = Stand(str(data["label"]), str(data["part"]), str(data["base"]),
+                      np.array(data["frame"], float), np.array(data["corners"], float),
+                      np.array(data["top"], float))
+    except (KeyError, TypeError, ValueError) as exc:
+        raise ValueError(f"a stand needs label, part, base, frame, corners and top ({exc})") \
+            from None
+    shapes = (stand.frame.shape, stand.corners.shape, stand.top.shape)
+    if shapes != ((4, 4), (4, 2), (3,)) or not all(
+            np.all(np.isfinite(a)) for a in (stand.frame, stand.corners, stand.top)):
+        raise ValueError(f"stand {stand.label}: frame (4, 4), corners (4, 2) and top (3,) "
+                         "finite numbers expected")
+    return stand
+
+
+def stand_solid(stand: Stand, mm: float = 1000.0):
+    """The stand as a CadQuery solid in world millimetres (``mm`` = 1: metres): the base
+    rectangle extruded past the top, cut by the top plane (CadQuery is imported here)."""
     import cadquery as cq
 
-    mm = 1000.0
     local = stand.local_vertices() * mm
-    high = float(local[:, 2].max()) + 10.0
+    high = float(local[:, 2].max()) + 0.01 * mm
     block = cq.Workplane("XY").polyline([tuple(p) for p in local[:4, :2]]).close().extrude(high)
     a, b, _ = stand.top
     normal = np.array([-a, -b, 1.0]) / math.sqrt(a * a + b * b + 1.0)  # out of the top

@@ -34,7 +34,7 @@ an angle also as the millimetres it moves the frame's farthest part.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -212,6 +212,24 @@ def frame_notes(scenario, scene, tolerances, rooms=None, push=None) -> list[Fram
 
 
 # --- scene -> template inputs ---------------------------------------------------------------------
+
+
+def with_supports(parts, stands) -> list[PlacedPart]:
+    """``parts`` with each stand (:class:`~rgmcad.making.stands.Stand`) drawn as a part,
+    placed first (a stand goes down before what it holds): ``S1 support of track``, its
+    size and heights as its note."""
+    if not stands:
+        return list(parts)
+    out = []
+    for k, stand in enumerate(stands):
+        mesh = stand.mesh()
+        length, width = stand.size
+        h = stand.heights() * 1000
+        note = f"stand {length * 1000:.1f} x {width * 1000:.1f} mm, {h.min():.1f}-{h.max():.1f} mm"
+        out.append(PlacedPart(f"{stand.label} support of {stand.part}", k + 1,
+                              np.asarray(mesh.vertices), np.asarray(mesh.faces),
+                              stand.frame.copy(), (note,)))
+    return out + [replace(p, order=p.order + len(out)) for p in parts]
 
 
 def template_inputs(scenario, scene, tolerances=None, push=None):

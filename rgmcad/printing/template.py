@@ -25,7 +25,7 @@ from shapely.ops import unary_union
 from rgmcad.errors import RgmcadError, ScenarioError
 from rgmcad.making.bom import PaperUse, write_stls
 from rgmcad.printing.drawing import PartOutline, build_drawing
-from rgmcad.printing.inputs import template_inputs
+from rgmcad.printing.inputs import template_inputs, with_supports
 from rgmcad.printing.making_pages import Making, making_page_count, scene_making
 from rgmcad.printing.pdf import cover_page_count, empty_sheets, write_pdf
 from rgmcad.printing.plane import PlaneFrame, resolve_plane
@@ -209,7 +209,7 @@ def make_template(parts, base_planes, out_dir, *, plane: str | None = None,
 def scene_template(scenario, scene, out_dir, *, tolerances=None, plane: str | None = None,
                    paper: str | None = None, overlap_mm: float = 12.0,
                    title: str = "", note: str = "", push=None, making: bool = True,
-                   ball_mass=None) -> TemplateResult:
+                   ball_mass=None, supports=()) -> TemplateResult:
     """:func:`make_template` of a posed scene of ``scenario``, parts in placement order, with
     its ropes.
 
@@ -220,9 +220,11 @@ def scene_template(scenario, scene, out_dir, *, tolerances=None, plane: str | No
     naming the scenario file. With ``making``, the PDF also holds the bill of materials
     (``ball_mass``: :func:`rgmcad.making.ball_mass.read_cached`'s measurement, or None) and
     the assembly steps with their pictures, and the printed parts' STL files are written to
-    ``out_dir/print/``.
+    ``out_dir/print/``. ``supports`` (stands of :mod:`rgmcad.making.stands`) are drawn as
+    parts placed first: their footprints, labels and sizes.
     """
     parts, planes, frames = template_inputs(scenario, scene, tolerances, push)
+    parts = with_supports(parts, supports)
     try:
         made = None
         if making:

@@ -20,6 +20,7 @@ from rgmcad.runs.report import (
     report_markdown,
 )
 from rgmcad.runs.store import MODEL, SETTINGS, SIMULATIONS
+from rgmcad.runs.supports_text import read_supports, supports_lines
 from rgmcad.runs.tolerance_check import BISECTIONS, POINTS, flags_of, pushed_against, sides_of
 from rgmcad.sim.run import Outcome
 
@@ -171,7 +172,8 @@ def write_outputs(scenario, store, recorded, result, chosen, wall_time, seed, bu
     if by_hand:
         plot_hand(by_hand, run_dir / HAND_PLOT, f"{scenario.name}: the chosen layout, placed by "
                   "hand")
-    write_atomic(run_dir / REPORT_FILE, report_markdown(scenario, summary, low, high))
+    write_atomic(run_dir / REPORT_FILE, report_markdown(
+        scenario, summary, low, high, supports_lines(read_supports(run_dir))))
     store.write_result(summary)  # last: its presence marks the run finished
     return summary
 
