@@ -6,9 +6,9 @@ simulating those runs again with the stands as static bodies.
 surface is (points about 2 mm apart), blocks the cells of each raised part's site those
 points stand over (:class:`~rgmcad.making.placement.Site`), chooses the stands, and then
 simulates every run again with the stands built into the world. A stand is *touched* when
-the engine holds a contact point between it and a body (any within its 2 mm contact
-threshold); a touched stand's site is blocked where it was touched and its stands chosen
-again, up to ``rounds`` times. Each run's outcome with the stands is compared with its
+the engine holds a contact point between it and a body closer than :data:`TOUCH` (1 mm); a
+touched stand's site is blocked where it was touched and its stands chosen again, up to
+``rounds`` times. Each run's outcome with the stands is compared with its
 outcome without them. A stand follows its part: under a hand's errors it moves with it.
 
 The runs are draw 0, 1, ... of :class:`~rgmcad.scene.perturbation.PhysicsDraw` under a seed
@@ -17,6 +17,7 @@ The runs are draw 0, 1, ... of :class:`~rgmcad.scene.perturbation.PhysicsDraw` u
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 
@@ -37,6 +38,11 @@ from rgmcad.sim.run import simulate
 
 __all__ = ["ClearanceSettings", "RunCheck", "SupportPlan", "plan_supports", "check_stands",
            "draws"]
+
+
+TOUCH = 0.001
+"""m: a body this close to a stand touches it (the engine reports contact points out to its
+contact threshold, 2 mm; :attr:`RunCheck.closest` says how close the nearest came)."""
 
 
 @dataclass(frozen=True)
@@ -62,12 +68,14 @@ def draws(settings: ClearanceSettings) -> list[PhysicsDraw | None]:
 @dataclass(frozen=True)
 class RunCheck:
     """One run simulated without and with the stands: ``draw`` (-1: nominal), the outcomes
-    and event states of each, and the stands touched (label, body, time s)."""
+    and event states of each, the stands touched (label, body, time s) and the nearest a
+    body came to a stand (m; inf: never within the engine's contact threshold)."""
 
     draw: int
     without: tuple
     with_stands: tuple
     touches: tuple[tuple[str, str, float], ...]
+    closest: float = float("inf")
 
     @property
     def same(self) -> bool:
@@ -106,7 +114,8 @@ class SupportPlan:
                           for h in self.holdings],
                 "unsupported": [{"part": p, "why": why} for p, why in self.unsupported],
                 "runs": len(self.checks), "runs_touched": len(self.touched),
-                "runs_changed": len(self.changed), "rounds": self.rounds}
+                "runs_changed": len(self.changed), "rounds": self.rounds,
+                "closest_mm": _mm(min((c.closest for c in self.checks), default=math.inf))}
 
     def summary(self) -> str:
         n = len(self.checks)
@@ -114,6 +123,11 @@ class SupportPlan:
                 f"{len(self.unsupported)} without a stand; {n} runs: "
                 f"{n - len(self.touched)} with no stand touched, "
                 f"{n - len(self.changed)} with the same outcome")
+
+
+def _mm(metres: float) -> float | None:
+    """Millimetres to 0.1, None for infinity (JSON has none)."""
+    return None if math.isinf(metres) else round(metres * 1000, 1)
 
 
 class _Recorder:
@@ -230,6 +244,7 @@ class _Stands:
         self.stands, self.nominal, self.part_body = stands, nominal_poses, part_body
         self.uids = None
         self.touches: list[tuple[str, str, float, np.ndarray]] = []
+        self.touch, self.closest = TOUCH, float("inf")
 
     def __call__(self, world, t):
         if self.uids is None:
@@ -237,8 +252,10 @@ class _Stands:
         cid = world.cid
         for label, uid in self.uids:
             for c in pb.getContactPoints(bodyA=uid, physicsClientId=cid):
-                other = self.names.get((c[2], c[4]), f"body {c[2]}")
-                self.touches.append((label, other, t, np.asarray(c[6], float)))
+                self.closest = min(self.closest, c[8])
+                if c[8] <= self.touch:
+                    other = self.names.get((c[2], c[4]), f"body {c[2]}")
+                    self.touches.append((label, other, t, np.asarray(c[6], float)))
 
     def _build(self, world):
         e = world.engine
@@ -286,7 +303,7 @@ def check_stands(scenario: Scenario, values, parts: Mapping[str, BuiltPart],
             after = _states(_run(scenario, values, parts, draw, (hook,), engine, cache))
             checks.append(RunCheck(-1 if draw is None else draw.index, before, after,
                                    tuple(sorted({(a, b, round(t, 3)) for a, b, t, _ in
-                                                 hook.touches}))[:20]))
+                                                 hook.touches}))[:20], hook.closest))
             touches += [(a, b, t, p, draw) for a, b, t, p in hook.touches]
     finally:
         if own:

@@ -6,8 +6,9 @@ the plane of the part's face that looks towards its base plane (a face of one of
 bodies' boxes, with real area on it; else the plane parallel to the base through its
 nearest point) and a grid of 1 mm cells on the base plane around the part. Points of other
 bodies (every recorded pose of every moving body, other static parts) that lie under that
-plane, within a margin, block the cells they stand over; a stand is a rectangle of clear
-cells that overlaps the part's contact area. Lengths are metres unless named in mm.
+plane, within a margin, block the cells they stand over, except points inside the part's own
+convex hull (a ball in a goblet: the goblet's wall is between it and the stand); a stand is
+a rectangle of clear cells that overlaps the part's contact area. Lengths are metres unless named in mm.
 """
 
 from __future__ import annotations
@@ -17,6 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from scipy import ndimage
+from scipy.spatial import ConvexHull, QhullError
 
 from rgmcad.geometry import invert, matmul, transform_points
 from rgmcad.making.stands import MIN_HEIGHT, Stand
@@ -69,6 +71,7 @@ class Site:
         a, b, c = self.top
         self.blocked |= a * uu + b * vv + c < MIN_HEIGHT + settings.cell
         self._to_local = invert(frame)
+        self.shield: np.ndarray | None = None  # (k, 4) the part's hull planes, in ``frame``
         self._slack = settings.margin * math.sqrt(1.0 + a * a + b * b)
 
     @property
@@ -91,6 +94,8 @@ class Site:
         p = transform_points(to_local, np.asarray(points, float).reshape(-1, 3))
         a, b, c = self.top
         below = p[:, 2] <= a * p[:, 0] + b * p[:, 1] + c + self._slack
+        if self.shield is not None:  # inside the part's hull: the part stands between
+            below &= (p @ self.shield[:, :3].T + self.shield[:, 3]).max(axis=1) > -1e-4
         idx = np.rint((p[below, :2] - self.origin) / self.settings.cell).astype(int)
         m = self.settings.margin / self.settings.cell
         ok = np.all((idx >= -m) & (idx < np.array(self.blocked.shape) + m), axis=1)
@@ -205,6 +210,10 @@ def make_site(scene: Scene, holding: Holding, settings: PlacementSettings = Plac
     shape = tuple(int(n) for n in np.ceil((hi - lo) / settings.cell) + 1)
     site = Site(holding, frame, top, bodies[0].pose.copy(), lo, shape,
                 np.zeros(shape, bool), settings)
+    try:
+        site.shield = ConvexHull(local).equations
+    except QhullError:  # a flat part: no inside
+        site.shield = None
     uu, vv = site.cell_centres()
     site.contact = _rasterised(tris, uu, vv)
     if not site.contact.any():  # a thin contact: the cells around its points
