@@ -84,6 +84,9 @@ class Problem(Protocol):
         """Simulate each row of ``X`` (n, d); one :class:`Label` per row, in order."""
         ...
 
+    # Optional: ``event_dimensions``, a mapping of each event to the coordinates it depends
+    # on (the parts it involves), which a staged exploration keeps fixed once the event
+    # happened (:mod:`.moves`).
     # Optional: ``submit(X) -> wait``, which starts simulating ``X`` elsewhere (a process
     # pool) and returns ``wait() -> list[Label]``. The exploration then draws its next batch
     # while the last one simulates (``LearningSettings.exploration_lag``); without it, a
@@ -243,6 +246,11 @@ class ProductOracle:
             if any(not 0 <= j < self.dimension for j in ev.dims):
                 raise ValueError(f"event {name!r}: dims {ev.dims} outside 0..{self.dimension - 1}")
         object.__setattr__(self, "event_parents", parents)
+
+    @property
+    def event_dimensions(self) -> dict[str, tuple[int, ...]]:
+        """Each event's own dimensions (its true subspace): the causal graph's answer."""
+        return {name: tuple(ev.dims) for name, ev in self.events.items()}
 
     # --- ground truth ------------------------------------------------------------------------
 

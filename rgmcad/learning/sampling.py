@@ -16,6 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.stats import qmc
 
+from .moves import event_masks, few_moved, free_coordinates, staged
 from .oracles import Label, Problem
 from .parents import exploration_parents
 from .settings import LearningSettings
@@ -135,16 +136,6 @@ def _draw_mixture(means, weights, variances, n, rng) -> tuple[np.ndarray, np.nda
     comps = rng.choice(m, size=n, p=w / w.sum())
     X = means[comps] + rng.standard_normal((n, d)) * np.sqrt(var[comps])
     return np.clip(X, 0.0, 1.0), comps
-
-
-def _few_moved(draws: np.ndarray, parents: np.ndarray, share: float,
-               rng: np.random.Generator) -> np.ndarray:
-    """``draws`` with each coordinate kept at its parent's value unless a coin of ``share``
-    says it moves; a row whose coins all say keep moves one coordinate drawn at random."""
-    moves = rng.random(draws.shape) < share
-    still = np.flatnonzero(~moves.any(axis=1))
-    moves[still, rng.integers(draws.shape[1], size=len(still))] = True
-    return np.where(moves, draws, parents)
 
 
 def first_valid(
@@ -282,7 +273,10 @@ def explore(
        (docs/decisions.md, "Exploration stalls"). With ``exploration_stall_spacing`` > 0
        the parents taken then keep about a step apart (:func:`exploration_parents`).
     5. With ``exploration_move_share`` = p < 1 (off), each coordinate of a draw moves with
-       probability p, one at least; the rest keep the parent's values (``_few_moved``).
+       probability p, one at least; the rest keep the parent's values (:mod:`.moves`).
+    6. With ``exploration_staged`` = q > 0 and a problem that says which coordinates each
+       event depends on (``event_dimensions``), a share q of the draws keep their parent's
+       values on the coordinates of the events the parent achieved (:func:`.moves.staged`).
 
     When no selected sample has any successful event (the paper's weights would be 0/0),
     the iteration continues the Sobol sequence instead: with no partial success to grow
@@ -320,6 +314,7 @@ def explore(
             return lambda: simulate(X)
     s = settings
     d = problem.dimension
+    event_dims = getattr(problem, "event_dimensions", None)
     sobol = SobolStream(d, s.sobol_scramble, rng)
 
     Xs, labels = [], []
@@ -395,7 +390,11 @@ def explore(
                 s.max_draws_factor * s.exploration_batch, rng,
             )
             if s.exploration_move_share < 1:
-                cands = _few_moved(cands, X_all[top][comps], s.exploration_move_share, rng)
+                cands = few_moved(cands, X_all[top][comps], s.exploration_move_share, rng)
+            if s.exploration_staged > 0 and event_dims is not None:
+                free = np.stack([free_coordinates(labels[i].events, event_dims, d) for i in top])
+                cands = staged(cands, X_all[top][comps], free[comps], s.exploration_staged, rng,
+                               event_masks(event_dims, d))
             rate = mixture_valid / mixture_tested if mixture_tested else 1.0
             # the component index rides along as a last column, unseen by the validity test
             tagged, nt = first_valid(np.column_stack([cands, comps]),

@@ -1,11 +1,9 @@
 """Every tunable of the learning and optimisation pipeline, with its default and why.
 
 The defaults reproduce the settings behind the paper's Table 1 (the authors'
-``plot_local_robustness.py``, SPEC section 5.7) wherever the paper and the authors' code
-disagree, because those are the settings that produced the published numbers. Where rgmcad
-deliberately departs from both, the field's comment says so and why.
-
-Units: the unit cube ``[0, 1]^d`` of the design space (SPEC section 3.2), for every length.
+``plot_local_robustness.py``, SPEC section 5.7) where the paper and that code disagree (they
+made the published numbers); where rgmcad departs from both, the field's comment says why.
+Lengths are in the design space's unit cube ``[0, 1]^d`` (SPEC section 3.2).
 """
 
 from __future__ import annotations
@@ -33,12 +31,11 @@ class LearningSettings:
         N0: number of *valid* Sobol points simulated first (paper Alg. 1 and Table 1; the
         authors' optimisation demo used 1000).
     n_successes : int, default 100
-        N+: exploration stops once this many samples succeeded globally. The paper says
-        200; every run of the authors' code (Table 1 and the demo) used 100.
-    exploration_batch : int, default 10
-        N_k: valid samples drawn from the mixture per exploration iteration (paper, code).
-    exploration_max_iter : int, default 500
-        k_e: cap on exploration iterations (paper, code; "never reached" per the paper).
+        N+: exploration stops at this many global successes (paper: 200; every run of the
+        authors' code, Table 1 and the demo, used 100).
+    exploration_batch, exploration_max_iter : int, default 10, 500
+        N_k: valid mixture draws per exploration iteration; k_e: cap on the iterations
+        (paper, code; "never reached" per the paper).
     exploration_lag : int, default 1
         Batches of exploration that simulate while the next one is drawn (batch k is drawn
         from the batches before k - lag; 0 = the paper's sequential loop): the pool never
@@ -64,22 +61,23 @@ class LearningSettings:
     exploration_move_share : float, default 1.0
         p < 1 (rgmcad's, off): each coordinate of a mixture draw moves with probability p, one
         at least, the rest keep the parent's; 1: all move. "Draws that move a few coordinates".
+    exploration_staged : float, default 0.0
+        q > 0 (rgmcad's): a share q of the mixture draws keep their parent's values on the
+        coordinates of the events it achieved (the causal graph's). "Exploration in stages".
     sobol_scramble : bool, default True
-        Scramble the Sobol sequence with the run's rng. The authors used an unscrambled
-        sequence, so all their runs started from the same points; scrambling keeps the
-        low-discrepancy property, avoids the corner point 0 and makes repeated runs
-        independent. Set False to start every run from the same points.
+        Scramble the Sobol sequence with the run's rng (the authors' was not, so all their
+        runs started from the same points); it keeps the low-discrepancy property, avoids
+        the corner point 0 and makes runs independent. False: every run starts alike.
     max_draws_factor : int, default 100
-        At most ``max_draws_factor * n`` candidates are drawn to find ``n`` valid ones
-        (the authors' ``100 * N`` draws in exploration and ``1000 * N_k`` in active learning,
-        where the factor is applied to the ``10 * N_k`` candidates).
+        At most ``max_draws_factor * n`` candidates are drawn to find ``n`` valid ones (the
+        authors' ``100 * N`` in exploration, ``1000 * N_k`` = 100 x ``10 * N_k`` in active
+        learning).
     svm_C_grid, svm_gamma_grid : tuple of float, default 10^-3 ... 10^3 (7 values)
         Logarithmic grids of the SVM's C and gamma (gamma for standardised features),
         as in the authors' ``train_svc``.
     svm_class_weights : tuple, default (None,)
-        Class weightings tried in the grid search. The authors also tried ``"balanced"``;
-        since the search maximises accuracy, that weighting almost never wins, and it
-        doubles the search time. Add ``"balanced"`` to try it.
+        Class weightings of the grid search. The authors also tried ``"balanced"``, which a
+        search for accuracy almost never picks, at twice the time; add it to try it.
     cv_folds : int, default 3
         Stratified folds of the grid search; its best mean accuracy is the model's
         "accuracy" (paper section 5.2). Unlike the authors' code, the folds are shuffled
@@ -298,6 +296,7 @@ class LearningSettings:
     exploration_stall_batches: int = 5
     exploration_stall_spacing: float = 0.0
     exploration_move_share: float = 1.0
+    exploration_staged: float = 0.0
     sobol_scramble: bool = True
     max_draws_factor: int = 100
     # Classifier
@@ -376,7 +375,8 @@ class LearningSettings:
             raise ValueError("LearningSettings.exploration_move_share must lie in (0, 1], got "
                              f"{self.exploration_move_share!r}")
         for name in ("accuracy_target", "quasi_deterministic_rate", "exploration_keep_rate",
-                     "mi_relative_threshold", "parent_probability_min", "tolerance_ratio"):
+                     "exploration_staged", "mi_relative_threshold", "parent_probability_min",
+                     "tolerance_ratio"):
             value = getattr(self, name)
             if not 0.0 <= value <= 1.0:
                 raise ValueError(f"LearningSettings.{name} must lie in [0, 1], got {value!r}")

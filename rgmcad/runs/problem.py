@@ -30,7 +30,7 @@ from rgmcad.sim.run import Outcome
 
 __all__ = ["SimRecord", "ScenarioContext", "ScenarioProblem", "ContextPayload", "simulate_task",
            "simulate_layout_task", "simulate_values_task", "worst_of", "validity_task",
-           "scenario_digest", "event_parents", "any_joins"]
+           "scenario_digest", "event_parents", "any_joins", "event_dimensions"]
 
 
 @dataclass(frozen=True)
@@ -108,6 +108,22 @@ def scenario_digest(path: str | Path) -> str:
 def event_parents(scenario) -> dict[str, tuple[str, ...]]:
     """Each event of the scenario's causal graph and the events it waits for."""
     return {name: tuple(ev.after) for name, ev in scenario.events.items()}
+
+
+def event_dimensions(scenario) -> dict[str, tuple[int, ...]]:
+    """Each event's coordinates: the free parameters that move the objects it names, a
+    parameter of the object itself or of one it is posed on (a domino's run, a ball's
+    track). What the staged exploration keeps once the event happened."""
+    def posed_on(name):
+        while name is not None:
+            yield name
+            name = scenario.objects[name].parent
+
+    out = {}
+    for event, spec in scenario.events.items():
+        moved = {o for obj in spec.objects.values() if obj in scenario.objects for o in posed_on(obj)}
+        out[event] = tuple(i for i, f in enumerate(scenario.free) if f.object in moved)
+    return out
 
 
 def any_joins(scenario) -> frozenset[str]:
@@ -342,6 +358,7 @@ class ScenarioProblem:
     dimension: int = field(init=False)
     event_parents: Mapping[str, tuple[str, ...]] = field(init=False)
     any_joins: frozenset[str] = field(init=False)
+    event_dimensions: Mapping[str, tuple[int, ...]] = field(init=False)
     _context: ScenarioContext | None = field(default=None, init=False, repr=False)
 
     def __post_init__(self):
@@ -353,11 +370,13 @@ class ScenarioProblem:
         object.__setattr__(self, "dimension", scenario.dimension)
         object.__setattr__(self, "event_parents", event_parents(scenario))
         object.__setattr__(self, "any_joins", any_joins(scenario))
+        object.__setattr__(self, "event_dimensions", event_dimensions(scenario))
 
     def __getstate__(self):  # the context stays in its process
         return {"scenario_path": self.scenario_path, "build_dir": self.build_dir,
                 "parts_dir": self.parts_dir, "dimension": self.dimension,
-                "event_parents": dict(self.event_parents), "any_joins": self.any_joins}
+                "event_parents": dict(self.event_parents), "any_joins": self.any_joins,
+                "event_dimensions": dict(self.event_dimensions)}
 
     def __setstate__(self, state):
         object.__setattr__(self, "_context", None)

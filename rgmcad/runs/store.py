@@ -1,5 +1,4 @@
-"""The run directory of ``rgmcad optimize``: everything a run needs to continue after any
-interruption.
+"""The run directory of ``rgmcad optimize``: all a run needs to continue after any interruption.
 
 Files::
 
@@ -69,11 +68,12 @@ MODEL = "model.pkl"
 REJECTED = "simulations.rejected.jsonl"
 FORMAT = 1
 
-# LearningSettings fields outside a run's identity (speed only), and fields added later at the
-# value that gives the code before them (every new one: older run directories stay resumable)
+# LearningSettings fields outside a run's identity (speed only), and those added later at the
+# value of the code before them (so older run directories stay resumable)
 _NOT_IDENTITY = ("n_jobs",)
 _ADDED_LATER = {"unmodelled_at": "start", "second_look": False, "exploration_stall_spacing": 0.0,
-                "second_look_rounds": 1, "close_in_copies": 0, "exploration_move_share": 1.0}
+                "second_look_rounds": 1, "close_in_copies": 0, "exploration_move_share": 1.0,
+                "exploration_staged": 0.0}
 
 
 def run_identity(scenario_name: str, scenario_sha256: str, seed: int, settings,
