@@ -114,6 +114,18 @@ def test_stands_are_a_line_of_the_bill_and_a_step_with_a_picture():
     assert orange[k] > 0
 
 
+def test_the_steps_number_parts_and_stands_as_the_template_does():
+    from rgmcad.making.steps import supports_of
+    from rgmcad.printing.inputs import template_inputs, with_supports
+
+    scenario, scene = shipped("ballrun")
+    stands = [_stand("S1", "top_track", -0.1), _stand("S2", "bottom_track", 0.1)]
+    drawn = {p.name: p.order for p in with_supports(template_inputs(scenario, scene)[0], stands)}
+    for step in assembly_steps(scenario, scene, supports_of(stands)):
+        names = step.bodies or [n for n in drawn if n.startswith(f"{step.support} ")]
+        assert step.orders == tuple(drawn[n] for n in names)
+
+
 def test_the_ball_rests_on_its_track_and_comes_after_it():
     scenario, scene = shipped("ballrun")
     assert "top_track" in rests_on(scene)["ball"]

@@ -229,7 +229,8 @@ def scene_template(scenario, scene, out_dir, *, tolerances=None, plane: str | No
         made = None
         if making:
             frame = resolve_plane(parts, planes, plane)
-            made = scene_making(scenario, scene, frame.normal, frame.v_axis, ball_mass)
+            made = scene_making(scenario, scene, frame.normal, frame.v_axis, ball_mass,
+                                stands=supports)  # in the bill, and a step before each part
         result = make_template(parts, planes, out_dir, plane=plane, paper=paper,
                                overlap_mm=overlap_mm, title=title, frames=frames,
                                ropes=scene_ropes(scene), note=note, making=made)
