@@ -11,10 +11,14 @@ from __future__ import annotations
 
 import base64
 import io
+import logging
 from dataclasses import dataclass
 from html import escape
 
 import numpy as np
+
+log = logging.getLogger(__name__)
+log.addHandler(logging.NullHandler())
 
 PICTURE_PX = (320, 240)
 """Size of a step's picture in the reports, pixels."""
@@ -29,6 +33,18 @@ class MakingReport:
     markdown: tuple[str, ...]
 
 
+def stands_of(supports: dict | None) -> list:
+    """The stands of a run's ``supports.json`` (:mod:`rgmcad.runs.supports_text`); none where
+    it has none or one is malformed (logged: the report is written without them)."""
+    from rgmcad.making.stands import stand_from_json
+
+    try:
+        return [stand_from_json(s) for s in (supports or {}).get("stands", [])]
+    except (ValueError, AttributeError) as exc:
+        log.warning("supports.json: %s; the report's steps leave the stands out", exc)
+        return []
+
+
 def _png(picture: np.ndarray) -> bytes:
     from PIL import Image
 
@@ -37,15 +53,18 @@ def _png(picture: np.ndarray) -> bytes:
     return out.getvalue()
 
 
-def making_report(scenario, scene, ball_mass=None) -> MakingReport:
+def making_report(scenario, scene, ball_mass=None, stands=()) -> MakingReport:
     """The bill and the steps of the posed ``scene`` (``ball_mass``: the measurement kept in
-    the run, :func:`rgmcad.making.ball_mass.read_cached`)."""
-    from rgmcad.making.bom import bill_of_materials
-    from rgmcad.making.steps import assembly_steps, render_steps
+    the run, :func:`rgmcad.making.ball_mass.read_cached`; ``stands``: those of ``rgmcad
+    supports``, :mod:`rgmcad.making.stands`)."""
+    from rgmcad.making.bom import bill_of_materials, support_lines
+    from rgmcad.making.steps import assembly_steps, render_steps, supports_of
 
-    bill = bill_of_materials(scenario, scene, ball_mass=ball_mass)
-    steps = assembly_steps(scenario, scene)
-    pictures = render_steps(scenario, scene, steps, width=PICTURE_PX[0], height=PICTURE_PX[1])
+    bill = bill_of_materials(scenario, scene, ball_mass=ball_mass,
+                             supports=support_lines(stands))
+    steps = assembly_steps(scenario, scene, supports_of(stands))
+    pictures = render_steps(scenario, scene, steps, width=PICTURE_PX[0], height=PICTURE_PX[1],
+                            stands=stands)
     md = ["", "## Bill of materials", "",
           "What to buy or make (the template adds its paper and tape; `rgmcad template "
           "--bom-json` prints it all):", ""]
@@ -58,9 +77,10 @@ def making_report(scenario, scene, ball_mass=None) -> MakingReport:
     for step, picture in zip(steps, pictures, strict=True):
         data = _png(picture)
         md.append(f"{step.number}. {step.text}")
-        items.append(f'<li><img src="data:image/png;base64,{base64.b64encode(data).decode()}" '
+        items.append(f'<li style="width:{PICTURE_PX[0] + 10}px">'
+                     f'<img src="data:image/png;base64,{base64.b64encode(data).decode()}" '
                      f'alt="step {step.number}" width="{PICTURE_PX[0]}"><br>'
-                     f"{escape(step.text)}</li>")
+                     f"<b>{step.number}.</b> {escape(step.text)}</li>")
     rows = "".join(f"<tr><td>{line.count}</td><td>{escape(line.kind)}</td>"
                    f"<td>{escape(line.what)}</td><td>{escape(line.note)}</td></tr>"
                    for line in bill.lines)
@@ -69,5 +89,6 @@ def making_report(scenario, scene, ball_mass=None) -> MakingReport:
             f"<th>note</th></tr>{rows}</table>"
             "<h2>Assembly steps</h2><p>In the template's order (the numbers of the parts on its "
             "sheets); orange: what the step places.</p>"
-            f'<ol class="steps">{"".join(items)}</ol>')
+            '<ol class="steps" style="display:flex;flex-wrap:wrap;gap:1em;'
+            f'list-style:none;padding:0">{"".join(items)}</ol>')
     return MakingReport(html, tuple(md))

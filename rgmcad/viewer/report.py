@@ -29,7 +29,7 @@ from rgmcad.runs.report import (
     user_scale,
 )
 from rgmcad.runs.store import RESULT
-from rgmcad.viewer.making import making_report
+from rgmcad.viewer.making import making_report, stands_of
 from rgmcad.viewer.page import html_page, replay_section
 from rgmcad.viewer.recording import record_replay, replay_payload
 
@@ -68,6 +68,7 @@ def write_run_report(run_dir: str | Path, scenario_path: str | Path, *,
     """Write ``run_dir/report.html`` for the finished run in ``run_dir`` of the scenario at
     ``scenario_path`` (a file or a shipped scenario's name); returns its path."""
     from rgmcad.making.ball_mass import read_cached
+    from rgmcad.runs.supports_text import read_supports, supports_lines
     from rgmcad.scene.bodies import load_parts, make_scene
     from rgmcad.scene.design_space import bounds
     from rgmcad.scene.loader import load_scenario
@@ -83,10 +84,11 @@ def write_run_report(run_dir: str | Path, scenario_path: str | Path, *,
     payload = None if replay is None else replay_payload(replay)
     low, high = bounds(scenario)
     title = f"{scenario.name}: optimised layout"
+    supports = read_supports(run_dir)  # rgmcad supports --out RUN/supports, if it was run
     making = making_report(scenario, make_scene(scenario, values, parts), read_cached(
-        run_dir, shipped_path(scenario_path), values))  # the bill and the steps, both reports
-    write_atomic(run_dir / REPORT_FILE, report_markdown(scenario, summary, low, high,
-                                                        making.markdown))
+        run_dir, shipped_path(scenario_path), values), stands_of(supports))  # both reports
+    write_atomic(run_dir / REPORT_FILE, report_markdown(scenario, summary, low, high, [
+        *supports_lines(supports), *making.markdown]))
     body = [f"<h1>{escape(title)}</h1>", _overview(summary, result),
             "<h2>Replay of the optimised layout</h2>",
             replay_section(payload) if payload else
