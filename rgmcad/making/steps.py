@@ -119,6 +119,14 @@ def _numbers(orders: Sequence[int]) -> str:
     return ", ".join(f"{s[0]}-{s[-1]}" if len(s) > 2 else ", ".join(map(str, s)) for s in spans)
 
 
+def _route(objects: Sequence[str | None]) -> str:
+    """``"cage -> 2 pulleys -> gate"``: a rope's ends (``a fixed point`` for the world) and
+    how many points it runs over between them."""
+    ends = [o or "a fixed point" for o in (objects[0], objects[-1])]
+    k = len(objects) - 2
+    return " -> ".join([ends[0], *([f"{k} pulle{'ys' if k > 1 else 'y'}"] if k else []), ends[1]])
+
+
 def assembly_steps(scenario, scene, supports: Sequence[Support] = (),
                    where: Mapping[str, Sequence[str]] | None = None) -> tuple[Step, ...]:
     """The numbered steps of building ``scene`` (a posed layout of ``scenario``).
@@ -195,7 +203,7 @@ def assembly_steps(scenario, scene, supports: Sequence[Support] = (),
                 ropes.remove(rope)
                 add(kind="rope", rope=rope.name,
                     text=f"Tie rope {rope.name} ({rope.length * 1000:.0f} mm between the "
-                         f"knots): {' -> '.join(o or 'the fixed point' for o in rope.objects)}.")
+                         f"knots): {_route(rope.objects)}.")
     for rope in ropes:  # tied to nothing that is placed (world points only)
         add(kind="rope", rope=rope.name, text=f"Tie rope {rope.name} "
             f"({rope.length * 1000:.0f} mm between the knots).")
