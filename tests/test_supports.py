@@ -170,3 +170,23 @@ def test_report_has_a_supports_section():
     text = "\n".join(supports_lines(doc))
     assert "## Supports" in text and "| S1 | " in text and "2 static parts are raised" in text
     assert supports_lines(None) == []
+
+
+def test_a_lever_axle_over_a_shelf_gets_a_post_against_its_end():
+    from rgmcad.making.beside import side_sites
+
+    scene = _scene(ROOT / "scenarios" / "branching.toml", "solved")
+    (lever,) = raised_parts(scene)
+    assert lever.base.name == "top of support"  # the held box under it, not the floor
+    assert lever.gap == pytest.approx(0.011 - 0.0012, abs=1e-4)
+    posts = [s for site in side_sites(scene, lever) for s in site.choose(1)]
+    assert posts
+    axle = scene.bodies["lever.axle"].world_vertices()
+    for post in posts:
+        mesh = post.mesh()
+        assert mesh.is_watertight
+        assert post.footprint()[:, 2] == pytest.approx(0.0)  # on the box's top, z = 0
+        assert post.heights().min() > axle[:, 2].max() - 0.0  # up past the axle
+        ends = np.abs(axle[:, 1] - post.vertices()[:, 1].min()).min(), \
+            np.abs(axle[:, 1] - post.vertices()[:, 1].max()).min()
+        assert min(ends) < 1e-6  # its side is against the axle's end

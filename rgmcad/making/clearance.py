@@ -24,6 +24,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from rgmcad.geometry import invert, matmul
+from rgmcad.making.beside import side_sites
 from rgmcad.making.placement import PlacementSettings, Site, make_site, surface_samples
 from rgmcad.making.stands import Stand
 from rgmcad.making.supports import Holding, base_planes, holdings
@@ -319,7 +320,11 @@ def plan_supports(scenario: Scenario, values, parts: Mapping[str, BuiltPart],
     scene = make_scene(scenario, values, parts)
     planes = base_planes(scene)
     held = holdings(scene, planes)
-    sites = [make_site(scene, h, settings.placement) for h in held if h.raised]
+    bases = {h.fixed for h in scene.hinges if h.fixed is not None}
+    groups = [[make_site(scene, h, settings.placement)]
+              + (side_sites(scene, h) if bases & set(h.part.bodies) else [])
+              for h in held if h.raised]
+    sites = [site for group in groups for site in group]
     run_draws = draws(settings)
     engine, cache = Engine(renderer=False), PartCache()
     try:
@@ -329,7 +334,7 @@ def plan_supports(scenario: Scenario, values, parts: Mapping[str, BuiltPart],
             baseline.append(_states(_run(scenario, values, parts, draw, (recorder,),
                                          engine, cache)))
             recorder.block(sites)
-        by_site = _choose_all(sites)
+        by_site, made_by = _choose_all(groups)
         checks: list[RunCheck] = []
         rounds = 0
         for rounds in range(1, settings.rounds + 2):
@@ -338,27 +343,35 @@ def plan_supports(scenario: Scenario, values, parts: Mapping[str, BuiltPart],
                                            baseline, engine, cache)
             if not touches or rounds > settings.rounds:
                 break
-            label_site = {s.label: i for i, group in enumerate(by_site) for s in group}
             for label, _, _, point, draw in touches:
-                site = sites[label_site[label]]
+                site = made_by[label]
                 part_pose = _part_pose(scenario, values, parts, site, draw, engine, cache)
                 site.block(point[None], part_pose)
-            by_site = _choose_all(sites)
+            by_site, made_by = _choose_all(groups)
     finally:
         engine.close()
         cache.close()
     stands = tuple(s for group in by_site for s in group)
-    unsupported = tuple((site.name, "no clear room for a stand under it")
-                        for site, group in zip(sites, by_site, strict=True) if not group)
+    unsupported = tuple((group[0].name, "no clear room for a stand under it"
+                         + (" nor for a post beside it" if len(group) > 1 else ""))
+                        for group, stands in zip(groups, by_site, strict=True) if not stands)
     return SupportPlan(tuple(held), stands, unsupported, tuple(checks), rounds)
 
 
-def _choose_all(sites: Sequence[Site]) -> list[list[Stand]]:
-    out, n = [], 1
-    for site in sites:
-        out.append(site.choose(n))
-        n += len(out[-1])
-    return out
+def _choose_all(groups: Sequence[Sequence[Site]]) -> tuple[list[list[Stand]], dict]:
+    """Each part's stands (from its first site that has room: under it, else beside it)
+    and the site that made each stand, by label."""
+    out, made_by, n = [], {}, 1
+    for group in groups:
+        stands = []
+        for site in group:
+            stands = site.choose(n)
+            if stands:
+                made_by.update((s.label, site) for s in stands)
+                break
+        out.append(stands)
+        n += len(stands)
+    return out, made_by
 
 
 def _part_pose(scenario, values, parts, site: Site, draw, engine, cache) -> np.ndarray:

@@ -72,6 +72,11 @@ class Site:
         self.blocked |= a * uu + b * vv + c < MIN_HEIGHT + settings.cell
         self._to_local = invert(frame)
         self.shield: np.ndarray | None = None  # (k, 4) the part's hull planes, in ``frame``
+        # a post beside the part (:mod:`rgmcad.making.beside`): the u of the face it meets,
+        # the contact cells it needs, and no cap on its size from the contact's extent
+        self.face_u: float | None = None
+        self.need_cells: int | None = None
+        self.free_size = False
         self._slack = settings.margin * math.sqrt(1.0 + a * a + b * b)
 
     @property
@@ -93,23 +98,25 @@ class Site:
             to_local = matmul(to_local, matmul(self.part_pose, invert(part_pose)))
         p = transform_points(to_local, np.asarray(points, float).reshape(-1, 3))
         a, b, c = self.top
-        below = p[:, 2] <= a * p[:, 0] + b * p[:, 1] + c + self._slack
+        below = (p[:, 2] <= a * p[:, 0] + b * p[:, 1] + c + self._slack) & (p[:, 2] > -1e-4)
         if self.shield is not None:  # inside the part's hull: the part stands between
             below &= (p @ self.shield[:, :3].T + self.shield[:, 3]).max(axis=1) > -1e-4
         idx = np.rint((p[below, :2] - self.origin) / self.settings.cell).astype(int)
         m = self.settings.margin / self.settings.cell
         ok = np.all((idx >= -m) & (idx < np.array(self.blocked.shape) + m), axis=1)
         idx = idx[ok]
-        inside = np.all((idx >= 0) & (idx < self.blocked.shape), axis=1)
-        hits = np.zeros(self.blocked.shape, bool)
-        hits[idx[inside, 0], idx[inside, 1]] = True
-        edge = idx[~inside]  # just outside the grid: their margin still reaches in
-        if len(edge):
-            clipped = np.clip(edge, 0, np.array(self.blocked.shape) - 1)
-            hits[clipped[:, 0], clipped[:, 1]] = True
+        if not len(idx):
+            return 0
         r = int(math.ceil(m))
+        lo, hi = idx.min(0) - r, idx.max(0) + r + 1  # a window around the hits, dilated
+        hits = np.zeros(tuple(hi - lo), bool)
+        hits[idx[:, 0] - lo[0], idx[:, 1] - lo[1]] = True
         disk = np.hypot(*np.mgrid[-r:r + 1, -r:r + 1]) <= m + 0.5
-        self.blocked |= ndimage.binary_dilation(hits, disk) if hits.any() else hits
+        hits = ndimage.binary_dilation(hits, disk)
+        a0, b0 = np.maximum(lo, 0), np.minimum(hi, self.blocked.shape)
+        if np.all(b0 > a0):
+            self.blocked[a0[0]:b0[0], a0[1]:b0[1]] |= \
+                hits[a0[0] - lo[0]:b0[0] - lo[0], a0[1] - lo[1]:b0[1] - lo[1]]
         return int(len(idx))
 
     def choose(self, first_label: int) -> list[Stand]:
@@ -153,7 +160,10 @@ class Site:
         smallest = np.array(self.settings.sizes_mm[-1]) / cell_mm  # always allowed
         extent = np.maximum(np.array([cu.max() - cu.min(), cv.max() - cv.min()]) + 1 + pad,
                             smallest)
-        need = self.settings.min_contact_mm2 / cell_mm ** 2
+        need = self.settings.min_contact_mm2 / cell_mm ** 2 if self.need_cells is None \
+            else self.need_cells
+        if self.free_size:
+            extent = np.array(self.contact.shape)
         for length, width in self.settings.sizes_mm:
             ni, nj = int(round(length / cell_mm)), int(round(width / cell_mm))
             if ni > extent[0] or nj > extent[1]:
@@ -171,6 +181,8 @@ class Site:
         cell = self.settings.cell
         u0, v0 = self.origin + cell * (np.array([i0, j0]) - 0.5)
         u1, v1 = u0 + ni * cell, v0 + nj * cell
+        if self.face_u is not None:  # a post: against the part's face
+            u0 = self.face_u
         corners = np.array([[u0, v0], [u1, v0], [u1, v1], [u0, v1]])
         return Stand(label, self.name, self.holding.base.name, self.frame.copy(), corners,
                      self.top.copy())
@@ -218,10 +230,23 @@ def make_site(scene: Scene, holding: Holding, settings: PlacementSettings = Plac
     site.contact = _rasterised(tris, uu, vv)
     if not site.contact.any():  # a thin contact: the cells around its points
         site.contact = _near_points(tris.reshape(-1, 2), uu, vv, 1.5 * settings.cell)
-    for other in scene.bodies.values():  # other static bodies block too
-        if other.static and not other.plane and other.name not in part.bodies:
-            site.block(_surface_points(other.built.vertices, other.built.faces, other.pose))
+    block_static(scene, site)
     return site
+
+
+def block_static(scene: Scene, site: Site) -> None:
+    """Block the site's cells under the static bodies other than its part's, and those off
+    its base's area (a shelf's edge)."""
+    base = site.holding.base
+    if base.outline is not None:
+        uu, vv = site.cell_centres()
+        cells = np.column_stack([uu.ravel(), vv.ravel(), np.zeros(uu.size)])
+        world = transform_points(site.frame, cells)
+        site.blocked |= ~base.on(world, site.settings.margin).reshape(uu.shape)
+    own = set(site.holding.part.bodies) | set(base.bodies)
+    for other in scene.bodies.values():
+        if other.static and not other.plane and other.name not in own:
+            site.block(_surface_points(other.built.vertices, other.built.faces, other.pose))
 
 
 def _face(bodies, frame, local) -> tuple[np.ndarray, np.ndarray]:

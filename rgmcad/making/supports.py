@@ -44,6 +44,20 @@ class BasePlane:
     point: np.ndarray
     normal: np.ndarray
     virtual: bool = False
+    outline: np.ndarray | None = None
+    """(k, 2) world x, y of a shelf's edge (the flat top of a held part), None: unbounded."""
+    bodies: tuple[str, ...] = ()
+    """A shelf's bodies (the held part's)."""
+
+    def on(self, points: np.ndarray, inset: float = 0.0) -> np.ndarray:
+        """(n,) bool: whether world points (n, 3) stand on the plane's area (``inset`` m
+        from a shelf's edge); always true on an unbounded plane."""
+        if self.outline is None:
+            return np.ones(len(points), bool)
+        import shapely
+
+        area = shapely.Polygon(self.outline).buffer(-inset)
+        return shapely.contains_xy(area, points[:, 0], points[:, 1])
 
     @property
     def horizontal(self) -> bool:
@@ -152,7 +166,37 @@ def holdings(scene: Scene, planes: list[BasePlane] | None = None, *,
             if other is not None:
                 held[p.name] = f"part {other}"
                 changed = True
+    for p in parts:  # a raised part over the flat top of a held part: a shelf to stand on
+        if p.name not in held:
+            shelf = _shelf(points, p, [q for q in parts if q.name in held])
+            if shelf is not None and shelf[0] < nearest[p.name][0]:
+                nearest[p.name] = shelf
     return [Holding(p, held.get(p.name, ""), *nearest[p.name]) for p in parts]
+
+
+def _shelf(points, part: StaticPart, held: list[StaticPart]):
+    """(gap, BasePlane) of the highest flat top of a held part right under ``part``'s
+    middle, or None."""
+    from scipy.spatial import ConvexHull
+
+    pts = points[part.name]
+    low, middle = pts[:, 2].min(), pts[:, :2].mean(0)
+    best = None
+    for q in held:
+        other = points[q.name]
+        top = other[:, 2].max()
+        face = other[other[:, 2] >= top - 2e-4, :2]
+        if top >= low - TOUCH or len(face) < 3 or (best and top <= best[1].point[2]):
+            continue
+        try:
+            hull = face[ConvexHull(face).vertices]
+        except Exception:  # noqa: BLE001 - a degenerate (line) top is no shelf
+            continue
+        plane = BasePlane(f"top of {q.name}", np.array([0.0, 0.0, top]),
+                          np.array([0.0, 0.0, 1.0]), outline=hull, bodies=q.bodies)
+        if plane.on(np.array([[*middle, top]]))[0]:
+            best = (float(low - top), plane)
+    return best
 
 
 def raised_parts(scene: Scene, planes: list[BasePlane] | None = None) -> list[Holding]:
