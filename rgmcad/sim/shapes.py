@@ -150,7 +150,6 @@ def inset_vertices(vertices, margin: float) -> np.ndarray:
     by ``margin`` (m): padded by a margin that size, it has the hull's faces again (its edges
     and corners rounded by the margin). A hull too thin for that (inradius under twice the
     margin) is inset by half its inradius, so its faces stand out by the rest."""
-    from scipy.optimize import linprog
     from scipy.spatial import ConvexHull, HalfspaceIntersection
 
     verts = np.asarray(vertices, float)
@@ -160,6 +159,8 @@ def inset_vertices(vertices, margin: float) -> np.ndarray:
     centre = verts.mean(axis=0)
     depth = -float((planes[:, :3] @ centre + planes[:, 3]).max())
     if depth <= 2 * margin:  # the deepest point instead (Chebyshev centre): max r, n.x + r <= -d
+        from scipy.optimize import linprog  # rare: its import alone costs 0.1 s
+
         found = linprog([0, 0, 0, -1], A_ub=np.hstack([planes[:, :3], np.ones((len(planes), 1))]),
                         b_ub=-planes[:, 3], bounds=[(None, None)] * 3 + [(0, None)])
         if not found.success or found.x[3] <= 1e-9:
