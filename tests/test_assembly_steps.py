@@ -155,3 +155,13 @@ def test_the_pdf_has_the_steps_pages():
     joined = " ".join(" ".join(pages).split())
     for s in steps:
         assert " ".join(s["text"].split()[:4]) in joined
+
+
+def test_the_report_reads_the_stands_of_a_run_and_skips_a_malformed_file(caplog):
+    from rgmcad.viewer.making import stands_of
+
+    stand = _stand("S1", "top_track", -0.1)
+    (read,) = stands_of({"stands": [stand.to_json()]})
+    assert read.label == "S1" and np.allclose(read.vertices(), stand.vertices())
+    assert stands_of(None) == [] and stands_of({"stands": [{"label": "S1"}]}) == []
+    assert "supports.json" in caplog.text
