@@ -4,7 +4,8 @@ checkout holds (``scenarios/``, ``parts/``, ``tests/data/``, ``tools/``), with `
 the environment's ``NAME``. Each must exit as the page says (0 unless :data:`EXITS` says
 why not), and the files it names with ``--out``, ``--html``, ``--video`` or ``--run`` (and the
 run directory its comment names) must be there and not empty. ``rgmcad live`` runs until it
-prints its address, then gets Ctrl-C and must stop cleanly, leaving no process behind.
+prints its address and its page shows the first run, then gets Ctrl-C and must stop
+cleanly (status 0, no traceback), leaving no process behind.
 
 What a reader makes by hand is made the way a reader makes it, just before the command that
 reads it: a layout saved by the live page's Save button, a scan and a phone photo of a sheet of
@@ -41,7 +42,7 @@ PAGES = ("simulate", "watch", "optimize", "evaluate", "live", "print", "supports
 
 NOT_RUN = {
     "optimize scenarios/ballrun.toml --seed 1 --run runs/br1":
-        "ballrun at the default budget: about 4 minutes on 2 cores",
+        "ballrun at the default budget: 7 minutes on the shared 2 cores",
     "supports ballrun --layout runs/ballrun-s0/layout.json":
         "needs ballrun's default-budget run (optimize ballrun: minutes); supports runs on simple",
     "optimize tools/generality/domino_arc.toml --start hand":
@@ -49,7 +50,8 @@ NOT_RUN = {
     "optimize scenarios/simple.toml --set second_look_rounds=3":
         "a second default-budget run of simple (a minute); --set is run by tests/test_set_option.py",
     "benchmark simple --methods ours,b1,cma --trials 2":
-        "two default-budget runs of ours, the baselines and their rho_g: several minutes",
+        "two default-budget runs of ours (46 s of CPU each on simple), the baselines, each "
+        "layout's rho_g: minutes",
     "benchmark ballrun --trials 3":
         "three default-budget ballrun runs and the baselines: an hour on 2 cores",
     "optimize ballrun --scheduler local:4":
@@ -57,8 +59,9 @@ NOT_RUN = {
     "dask scheduler": "a scheduler for other machines; tests/test_dask.py starts one",
     "dask worker tcp://HOST:8786": "a worker of a scheduler on another machine (HOST)",
     "--scheduler tcp://HOST:8786": "a scheduler on another machine (HOST)",
-    "tools/live_latency.py --saves 10": "6 scenarios x 10 saves and 2 x 100 saves: minutes",
-    "uv run pytest": "the test suite itself",
+    "tools/live_latency.py --saves 10":
+        "headless Chromium over 6 scenarios x 10 saves, then 2 x 100 saves: minutes",
+    "uv run pytest": "the test suite itself (or one file of it)",
     "uv run ruff check .": "lint: tests/test_lint.py runs ruff",
     "uv run lint-imports": "tests/test_structure.py runs it",
     "uv run mkdocs build": "tests/test_docs.py builds the site in strict mode",
@@ -108,9 +111,8 @@ def not_run(command: str) -> str | None:
 
 def shell(command: str) -> str:
     """``command`` as bash runs it here: ``uv run NAME`` is this environment's NAME."""
-    return re.sub(r"\buv run (\S+)",
-                  lambda m: shlex.quote(str(BIN / ("python" if m[1] == "python" else m[1]))),
-                  command)
+    return re.sub(r"\buv run (\S+)", lambda m: shlex.quote(
+        sys.executable if m[1] == "python" else str(BIN / m[1])), command)
 
 
 def calls(command: str) -> list[list[str]]:
@@ -138,8 +140,9 @@ def outputs(command: str) -> list[str]:
 
 
 def parse_and_load(argv: list[str], folder: Path) -> None:
-    """``rgmcad ARGV`` parsed by the command line's parser, its scenario loaded and each layout
-    it names (a named layout of the scenario, or a file in ``folder``) resolved."""
+    """``rgmcad ARGV`` parsed by the command line's parser, its scenario loaded, and each layout
+    it names found: a named layout of the scenario, its run's (``runs/SCENARIO-s0``) or a file
+    in ``folder``."""
     from rgmcad.cli import build_parser
     from rgmcad.runs.workflow import default_run_dir
     from rgmcad.scene.loader import load_scenario
@@ -313,22 +316,47 @@ def run_command(command: str, folder: Path) -> str:
     return printed
 
 
-def _group_alive(pgid: int) -> list[str]:
-    """The processes of process group ``pgid`` that still run (zombies aside)."""
-    alive = []
-    for stat in Path("/proc").glob("[0-9]*/stat"):
+def _still_running(pgid: int, started: list) -> list[int]:
+    """The processes of process group ``pgid``, and those of ``started``, still running."""
+    import psutil
+
+    alive = set()
+    for p in psutil.process_iter(["status"]):
         try:
-            fields = stat.read_text().rsplit(")", 1)[1].split()
-        except OSError:
+            if os.getpgid(p.pid) == pgid and p.info["status"] != psutil.STATUS_ZOMBIE:
+                alive.add(p.pid)
+        except (ProcessLookupError, psutil.Error):
             continue
-        if int(fields[2]) == pgid and fields[0] != "Z":
-            alive.append(stat.parent.name)
-    return alive
+    for p in started:
+        try:
+            if p.is_running() and p.status() != psutil.STATUS_ZOMBIE:
+                alive.add(p.pid)
+        except psutil.Error:
+            continue
+    return sorted(alive)
+
+
+def _first_picture(url: str, proc: subprocess.Popen, timeout: float = 120) -> None:
+    """Wait until the page at ``url`` has its first run to show, as the reader sees it."""
+    import json
+    import urllib.request
+
+    deadline = time.monotonic() + timeout
+    while True:
+        with urllib.request.urlopen(url + "state", timeout=30) as answer:
+            state = json.loads(answer.read())
+        if state.get("view", 0) >= 1 and not state.get("busy"):
+            return
+        assert proc.poll() is None and time.monotonic() < deadline, state
+        time.sleep(0.1)
 
 
 def serve_then_stop(command: str, folder: Path) -> str:
-    """Run ``rgmcad live ...`` until it prints its address, then Ctrl-C: it must stop with
-    status 0, and nothing it started may keep running."""
+    """Run ``rgmcad live ...`` until it prints its address and its page shows the first run,
+    then Ctrl-C: it must stop with status 0 and no traceback, and nothing it started may keep
+    running."""
+    import psutil
+
     proc = subprocess.Popen(["bash", "-c", "exec " + shell(command)], cwd=folder,
                             env=_environment(), stdout=subprocess.PIPE,
                             stderr=subprocess.STDOUT, text=True, start_new_session=True)
@@ -338,10 +366,12 @@ def serve_then_stop(command: str, folder: Path) -> str:
     reader.start()
     try:
         deadline = time.monotonic() + 180
-        while not any("live page at http://" in line for line in lines):
+        while not (url := re.search(r"live page at (http://\S+/)", "".join(lines))):
             assert proc.poll() is None, f"{command}: exit {proc.returncode}\n{''.join(lines)}"
             assert time.monotonic() < deadline, f"{command}: no address\n{''.join(lines)}"
             time.sleep(0.1)
+        _first_picture(url[1], proc)
+        started = psutil.Process(proc.pid).children(recursive=True)  # its simulation worker
         os.killpg(proc.pid, signal.SIGINT)  # Ctrl-C in the terminal: the whole group
         status = proc.wait(timeout=60)
     finally:
@@ -349,13 +379,13 @@ def serve_then_stop(command: str, folder: Path) -> str:
             os.killpg(proc.pid, signal.SIGKILL)
             proc.wait()
     reader.join(timeout=10)
-    assert status == 0, f"{command}: Ctrl-C gave exit {status}\n{''.join(lines)}"
+    printed = "".join(lines)
+    assert status == 0 and "Traceback" not in printed, f"{command}: Ctrl-C: exit {status}\n{printed}"
     deadline = time.monotonic() + 20
-    while _group_alive(proc.pid):
-        assert time.monotonic() < deadline, (
-            f"{command}: processes left after Ctrl-C: {_group_alive(proc.pid)}")
+    while left := _still_running(proc.pid, started):
+        assert time.monotonic() < deadline, f"{command}: processes left after Ctrl-C: {left}"
         time.sleep(0.2)
-    return "".join(lines)
+    return printed
 
 
 def reader_folder(tmp_path: Path) -> Path:
