@@ -180,9 +180,11 @@ def test_every_howto_page_with_commands_is_run_in_an_order():
 
 def test_every_exception_still_matches_a_command_of_the_docs():
     every = [c for _, c in page_commands()] + readme_commands()[1]
-    for table in (NOT_RUN, EXITS):
+    for table in (NOT_RUN, EXITS, BY_HAND):
         stale = [part for part in table if not any(part in c for c in every)]
         assert not stale, f"no command of the docs holds {stale}: remove them from the test"
+    stale = [pattern for pattern in SHOWN if not any(re.search(pattern, c) for c in every)]
+    assert not stale, f"no command of the docs matches {stale}: remove them from the test"
 
 
 @pytest.mark.slow  # a few seconds: the parser's and the scenarios' imports
@@ -212,7 +214,8 @@ def test_commands_are_read_as_a_shell_reads_them():
     assert outputs("uv run rgmcad optimize simple --budget small  # runs/simple-small-s0/") == \
         ["runs/simple-small-s0"]
     assert outputs("uv run rgmcad template x --out t --json") == ["t"]
-    assert shell("uv run python tools/x.py").startswith(str(BIN / "python"))
+    assert shell("uv run python tools/x.py") == f"{shlex.quote(sys.executable)} tools/x.py"
+    assert shell("uv run rgmcad -q simulate") == f"{shlex.quote(str(BIN / 'rgmcad'))} -q simulate"
 
 
 # --- what a reader makes by hand --------------------------------------------------------------
@@ -285,10 +288,12 @@ BY_HAND = {
 """Command substring: what the reader made before it."""
 
 SHOWN = {
-    "verify-print scan.png": "scale 97.0 %: reprint at actual size (100 %, no 'fit to page')",
-    "verify-print photo.jpg": '"verdict": "ok"',
+    r"live scenarios/simple\.toml$": "simple: live page at http://127.0.0.1:8767/ (Ctrl-C stops)",
+    r"verify-print scan\.png": "scale 97.0 %: reprint at actual size (100 %, no 'fit to page')",
+    r"verify-print photo\.jpg": '"verdict": "ok"',
 }
-"""Command substring: what it prints of what the reader made (print.md shows the first)."""
+"""Command (a regular expression): what it prints, as its page shows it (live.md, print.md),
+or of what the reader made (the photo)."""
 
 
 # --- running ----------------------------------------------------------------------------------
@@ -299,16 +304,21 @@ def _environment() -> dict:
     return {**os.environ, "COLUMNS": "200", "BROWSER": "true"}
 
 
+def check_shown(command: str, printed: str) -> None:
+    said = [text for pattern, text in SHOWN.items() if re.search(pattern, command)]
+    said += re.findall(r"#\s*(outcome: [^.]*)", command)  # README: "# outcome: success (2/2 ..."
+    assert all(s in printed for s in said), f"{command}: it printed\n{printed[-2000:]}"
+
+
 def run_command(command: str, folder: Path) -> str:
     """Run one command line in ``folder``; checks its exit status and outputs; its output."""
     done = subprocess.run(["bash", "-c", shell(command)], cwd=folder, env=_environment(),
                           capture_output=True, text=True, timeout=900)
-    status, why = next((v for part, v in EXITS.items() if part in command), (0, ""))
+    status, why = next((v for part, v in EXITS.items() if part in command), (0, "success"))
     printed = done.stdout + done.stderr
-    assert done.returncode == status, f"{command}\nexit {done.returncode}\n{printed[-3000:]}"
-    said = [v for part, v in SHOWN.items() if part in command]
-    said += re.findall(r"#\s*(outcome: [^.]*)", command)  # README: "# outcome: success (2/2 ..."
-    assert all(s in printed for s in said), f"{command}: it printed\n{printed[-2000:]}"
+    assert done.returncode == status, (
+        f"{command}\nexit {done.returncode}, not {status} ({why})\n{printed[-3000:]}")
+    check_shown(command, printed)
     for out in outputs(command):
         path = folder / out
         assert path.exists(), f"{command}: wrote no {out}\n{printed[-2000:]}"
@@ -381,6 +391,7 @@ def serve_then_stop(command: str, folder: Path) -> str:
     reader.join(timeout=10)
     printed = "".join(lines)
     assert status == 0 and "Traceback" not in printed, f"{command}: Ctrl-C: exit {status}\n{printed}"
+    check_shown(command, printed)
     deadline = time.monotonic() + 20
     while left := _still_running(proc.pid, started):
         assert time.monotonic() < deadline, f"{command}: processes left after Ctrl-C: {left}"
