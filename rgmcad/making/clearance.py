@@ -321,19 +321,21 @@ def plan_supports(scenario: Scenario, values, parts: Mapping[str, BuiltPart],
     planes = base_planes(scene)
     held = holdings(scene, planes)
     bases = {h.fixed for h in scene.hinges if h.fixed is not None}
-    groups = [[make_site(scene, h, settings.placement)]
-              + (side_sites(scene, h) if bases & set(h.part.bodies) else [])
-              for h in held if h.raised]
-    sites = [site for group in groups for site in group]
+    groups = [[make_site(scene, h, settings.placement)] for h in held if h.raised]
     run_draws = draws(settings)
     engine, cache = Engine(renderer=False), PartCache()
     try:
         baseline = []
-        for draw in run_draws:
+        for k, draw in enumerate(run_draws):
             recorder = _Recorder()
             baseline.append(_states(_run(scenario, values, parts, draw, (recorder,),
                                          engine, cache)))
-            recorder.block(sites)
+            recorder.block([site for group in groups for site in group])
+            if k == 0:  # posts, for the hinged parts with no room under them in the nominal run
+                for group in groups:
+                    if bases & set(group[0].holding.part.bodies) and not group[0].choose(1):
+                        group += side_sites(scene, group[0].holding)
+                        recorder.block(group[1:])
         by_site, made_by = _choose_all(groups)
         checks: list[RunCheck] = []
         rounds = 0
