@@ -12,6 +12,7 @@ import pytest
 
 from rgmcad.runs.hand import (
     Hand,
+    HandSettings,
     careful_hands,
     hand_race,
     measure_rate,
@@ -313,6 +314,7 @@ def test_at_each_printed_bound_a_layout_built_by_hand_works_as_often_on_new_buil
 
     problem = ScenarioProblem(SIMPLE)
     scenario = problem.scenario
+    samples = HandSettings().bound_samples  # as optimize checks them
     x = vector_from_values(scenario, resolve_layout(scenario, "solved", None)[1])
     width = np.subtract(*bounds(scenario)[::-1])
     model = np.array([[0.03, 0.03], [0.0, 0.0], [0.0, 0.0]]) / width[:, None]  # too generous
@@ -320,9 +322,11 @@ def test_at_each_printed_bound_a_layout_built_by_hand_works_as_often_on_new_buil
     try:
         builds = Builds(executor)
         got = hand_at_bounds(CheckedTolerances(model, np.zeros((3, 2), bool), 0), x,
-                             scenario, builds, Hand(), PhysicsRanges(), 0, 16,
+                             scenario, builds, Hand(), PhysicsRanges(), 0, samples,
                              np.zeros((3, 2), bool))
-        fresh = [PhysicsDraw(Hand().ranges(PhysicsRanges()), 0, 16 + i) for i in range(48)]
+        # builds the check never saw (it may use twice its samples)
+        fresh = [PhysicsDraw(Hand().ranges(PhysicsRanges()), 0, 2 * samples + i)
+                 for i in range(48)]
 
         def worse_better(tolerances, side):
             moved = x.copy()
