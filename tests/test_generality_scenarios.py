@@ -36,6 +36,19 @@ def test_hand_layout_succeeds(path, capsys):
     assert out["sim_time"] < 5.0
 
 
+def test_the_held_out_set_has_big_machines():
+    # Issue 50: at least two machines of 25 to 40 free parameters and 20 or more events, each
+    # with a hand layout (checked above with the rest), for the method to prove itself on.
+    from rgmcad.scene.loader import load_scenario
+
+    big = {path.stem: load_scenario(path) for path in HELD_OUT}
+    big = {name: s for name, s in big.items() if 25 <= s.dimension <= 40}
+    assert {"grand_course", "lever_arc"} <= set(big)
+    for name, scenario in big.items():
+        assert len(scenario.events) >= 20, name
+        assert "hand" in scenario.layouts, name
+
+
 def test_the_documentation_lists_every_part_family_with_its_parameters():
     # A new user writes a scenario from the documentation's page of families (the reference's
     # Part families, generated from parts/*.py), not from parts/*.py.
