@@ -12,7 +12,9 @@ reads it: a layout saved by the live page's Save button, a scan and a phone phot
 the template the print page printed. Commands too long for CI, or that need machines we do not
 have, are in :data:`NOT_RUN` with the reason; they are still parsed by the real command line
 and their scenario and named layouts loaded, and every entry must still match a command of
-the docs. Slow (a few minutes): CI runs it after the suite (``.ci/run``)."""
+the docs. Slow (about 5 minutes on 2 quiet cores): CI runs it after the suite (``.ci/run``).
+Both slow runs serve on live.md's and the README's port, 8767: the suite's ``--dist loadfile``
+keeps them in one worker, one after the other."""
 
 from __future__ import annotations
 
