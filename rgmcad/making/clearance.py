@@ -331,9 +331,11 @@ def plan_supports(scenario: Scenario, values, parts: Mapping[str, BuiltPart],
             baseline.append(_states(_run(scenario, values, parts, draw, (recorder,),
                                          engine, cache)))
             recorder.block([site for group in groups for site in group])
-            if k == 0:  # posts, for the hinged parts with no room under them in the nominal run
+            if k == 0:  # posts, for hinged parts with no more than the least room under them
+                smallest = tuple(x / 1000 for x in settings.placement.sizes_mm[-1])
                 for group in groups:
-                    if bases & set(group[0].holding.part.bodies) and not group[0].choose(1):
+                    if bases & set(group[0].holding.part.bodies) and all(
+                            np.allclose(s.size, smallest) for s in group[0].choose(1)):
                         group += side_sites(scene, group[0].holding)
                         recorder.block(group[1:])
         by_site, made_by = _choose_all(groups)
