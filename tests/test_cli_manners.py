@@ -116,6 +116,8 @@ def _commands(tmp: Path) -> dict[str, list[str]]:
         "evaluate": ["evaluate", "simple", "--layout", "solved", "--rho-g", "--samples", "1",
                      "--workers", "2", "--out", str(tmp / "e.png")],
         "export": ["export", "simple", "--out", str(tmp / "s.glb")],
+        "supports": ["supports", "simple", "--layout", "solved", "--out", str(tmp / "sup"),
+                     "--runs", "0", "--no-step", "--no-template"],
     }
 
 
