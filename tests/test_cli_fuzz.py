@@ -117,7 +117,8 @@ def _vectors(f) -> list[tuple[str, list[str], str | None]]:
                  "optimize": ["--run", f["run"], "--budget", "small"],
                  "evaluate": ["--layout", "initial", "--rho-g", "--samples", "1"],
                  "build parts": ["--out", f["run"] + "_parts"],
-                 "export": ["--out", f["run"] + ".step"]}.get(cmd, [])
+                 "export": ["--out", f["run"] + ".step"],
+                 "supports": ["--out", f["run"] + "_supports"]}.get(cmd, [])
         first = f["tiny.png"] if cmd == "verify-print" else "simple"
         for flag in ("--no-such-flag", "--no-such-flag=3", "-Z"):
             v.append(("unknown flag", [*words, first, *extra, flag], flag.split("=")[0]))
