@@ -6,7 +6,11 @@ from __future__ import annotations
 
 import http.client
 import json
+import os
+import signal
 import socket
+import subprocess
+import sys
 import time
 
 import numpy as np
@@ -256,6 +260,27 @@ def test_ctrl_c_stops_the_server_and_its_worker(server):
     assert code == 0 and out.splitlines()[-1] == "stopped", err
     gone, alive = psutil.wait_procs(children, timeout=5)
     assert not alive, [p.cmdline() for p in alive]
+
+
+def test_ctrl_c_at_once_is_a_clean_stop_while_the_worker_still_starts(tmp_path):
+    # a terminal's Ctrl-C goes to the whole process group: the worker, still importing, once
+    # printed a KeyboardInterrupt traceback under the server's "stopped"
+    proc = subprocess.Popen([sys.executable, "-m", "rgmcad.cli", "live", str(SIMPLE),
+                             "--no-browser", "--port", "0"], cwd=tmp_path, text=True,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, start_new_session=True)
+    try:
+        assert "live page at" in proc.stdout.readline()
+        children = psutil.Process(proc.pid).children(recursive=True)
+        time.sleep(0.3)
+        os.killpg(proc.pid, signal.SIGINT)
+        out, err = proc.communicate(timeout=30)
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+    assert proc.returncode == 0 and out.splitlines()[-1] == "stopped"
+    assert "Traceback" not in err and "KeyboardInterrupt" not in err, err
+    _, alive = psutil.wait_procs(children, timeout=5)
+    assert not [p for p in alive if p.status() != psutil.STATUS_ZOMBIE]
 
 
 # --- pieces, in this process ----------------------------------------------------------------

@@ -17,6 +17,7 @@ import multiprocessing
 import os
 import re
 import signal
+import threading
 import time
 from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass
@@ -95,7 +96,16 @@ class Session:
             if self._pool is pool and not future.cancelled() and future.exception() is None:
                 self._pid = future.result()
 
-        pool.submit(worker.hello).add_done_callback(known)
+        # the first task starts the worker: it is born with Ctrl-C ignored (an ignored signal
+        # stays so across exec, and Python then sets no KeyboardInterrupt handler), so a
+        # Ctrl-C while it still imports prints no traceback; the server stops it
+        main = threading.current_thread() is threading.main_thread()
+        before = signal.signal(signal.SIGINT, signal.SIG_IGN) if main else None
+        try:
+            pool.submit(worker.hello).add_done_callback(known)
+        finally:
+            if main:
+                signal.signal(signal.SIGINT, before)
 
     async def _run(self, task, *args) -> dict:
         """``task(*args)`` in the worker. A worker found dead is replaced first; one that
