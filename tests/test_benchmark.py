@@ -85,6 +85,7 @@ def test_a_killed_benchmark_resumes_to_the_identical_table(tmp_path):
     assert rows["b1"]["simulations_mean"] <= 20
 
 
+@pytest.mark.slow  # CI's second pass (.ci/run): the default suite stays under 5 minutes
 def test_ours_sets_the_budget_and_every_baseline_and_given_layout_is_paired_with_it(tmp_path):
     table = run_benchmark(SIMPLE, tmp_path, methods=("ours", "full", "b1", "b2"), trials=2,
                           samples=1, ours_budget="small", ours_settings=QUICK, workers=1)

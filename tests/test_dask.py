@@ -177,6 +177,7 @@ def test_a_scheduler_of_another_version_is_refused_in_one_line(tmp_path):
     assert "refused" in errors[0]
 
 
+@pytest.mark.slow  # CI's second pass (.ci/run): the default suite stays under 5 minutes
 def test_a_scheduler_killed_mid_run_stops_it_in_one_line_and_it_resumes(serial, tmp_path):
     run = tmp_path / "run"
     command = [sys.executable, "-m", "rgmcad.cli", "optimize", SIMPLE, "--budget", "small",
