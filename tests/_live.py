@@ -15,6 +15,8 @@ import time
 import urllib.request
 from pathlib import Path
 
+from tests._support import popen_as_terminal
+
 ROOT = Path(__file__).resolve().parent.parent
 SIMPLE = ROOT / "scenarios" / "simple.toml"
 TRACK = "pose = { x = -0.1, z = 0.1, roll = 30 }"
@@ -33,7 +35,7 @@ class Server:
         if self.file != scenario:
             shutil.copy(scenario, self.file)
         self.original = self.file.read_text()
-        self.proc = subprocess.Popen(
+        self.proc = popen_as_terminal(  # Ctrl-C stops it however the tests were started
             [sys.executable, "-m", "rgmcad.cli", "live", str(self.file), "--no-browser",
              "--port", "0", *args], cwd=folder, stdout=subprocess.PIPE,
             stderr=subprocess.PIPE, text=True)

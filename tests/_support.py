@@ -5,6 +5,8 @@ from __future__ import annotations
 import contextlib
 import io
 import json
+import signal
+import subprocess
 
 import numpy as np
 
@@ -71,3 +73,16 @@ def run_cli(argv) -> tuple[int, dict | None]:
         code = main(argv)
     text = out.getvalue().strip()
     return code, (json.loads(text) if text else None)
+
+
+def popen_as_terminal(command, **kwargs) -> subprocess.Popen:
+    """``subprocess.Popen(command, **kwargs)`` in a session of its own, with SIGINT's default
+    action, as a terminal's foreground job has it: Ctrl-C is then ``os.killpg(p.pid, SIGINT)``.
+    A test run started in the background by a script inherits SIGINT ignored, and so would
+    the command (Python sets no KeyboardInterrupt handler then), unless the disposition here
+    is a handler, which exec resets to the default."""
+    before = signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        return subprocess.Popen(command, start_new_session=True, **kwargs)
+    finally:
+        signal.signal(signal.SIGINT, signal.SIG_DFL if before is None else before)

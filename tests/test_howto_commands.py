@@ -30,6 +30,8 @@ from pathlib import Path
 
 import pytest
 
+from tests._support import popen_as_terminal
+
 ROOT = Path(__file__).resolve().parent.parent
 HOWTO = ROOT / "docs" / "how-to"
 BIN = Path(sys.executable).parent
@@ -369,9 +371,9 @@ def serve_then_stop(command: str, folder: Path) -> str:
     running."""
     import psutil
 
-    proc = subprocess.Popen(["bash", "-c", "exec " + shell(command)], cwd=folder,
-                            env=_environment(), stdout=subprocess.PIPE,
-                            stderr=subprocess.STDOUT, text=True, start_new_session=True)
+    proc = popen_as_terminal(["bash", "-c", "exec " + shell(command)], cwd=folder,
+                             env=_environment(), stdout=subprocess.PIPE,
+                             stderr=subprocess.STDOUT, text=True)
     lines: list[str] = []
     reader = threading.Thread(target=lambda: lines.extend(iter(proc.stdout.readline, "")),
                               daemon=True)

@@ -22,7 +22,7 @@ from rgmcad.live.errors import key_line
 from rgmcad.live.files import Watcher, read_saved, watched_files, write_saved
 from rgmcad.live.views import side_by_side, still_replay
 from tests._live import BROKEN, FAILING, SIMPLE, TRACK, Server
-from tests._support import cli_output
+from tests._support import cli_output, popen_as_terminal
 
 
 @pytest.fixture(scope="module")
@@ -265,9 +265,9 @@ def test_ctrl_c_stops_the_server_and_its_worker(server):
 def test_ctrl_c_at_once_is_a_clean_stop_while_the_worker_still_starts(tmp_path):
     # a terminal's Ctrl-C goes to the whole process group: the worker, still importing, once
     # printed a KeyboardInterrupt traceback under the server's "stopped"
-    proc = subprocess.Popen([sys.executable, "-m", "rgmcad.cli", "live", str(SIMPLE),
-                             "--no-browser", "--port", "0"], cwd=tmp_path, text=True,
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, start_new_session=True)
+    proc = popen_as_terminal([sys.executable, "-m", "rgmcad.cli", "live", str(SIMPLE),
+                              "--no-browser", "--port", "0"], cwd=tmp_path, text=True,
+                             stdout=subprocess.PIPE, stderr=subprocess.PIPE)
     try:
         assert "live page at" in proc.stdout.readline()
         children = psutil.Process(proc.pid).children(recursive=True)

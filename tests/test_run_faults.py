@@ -24,7 +24,7 @@ from rgmcad.runs.evaluation import evaluate_layout
 from rgmcad.runs.executor import PoolExecutor, parent_only
 from rgmcad.runs.store import REJECTED, RESULT, SETTINGS, SIMULATIONS, RunStore, run_identity
 from rgmcad.runs.workflow import optimize_scenario
-from tests._support import TINY, cli_output
+from tests._support import TINY, cli_output, popen_as_terminal
 
 ROOT = Path(__file__).resolve().parent.parent
 SIMPLE = "scenarios/simple.toml"
@@ -210,15 +210,8 @@ def _ctrl_c_at(command: list[str], journal: Path, lines: int) -> tuple[float, st
     """Run ``command`` in its own session (as a terminal's foreground job), press Ctrl-C
     (SIGINT to the whole process group) once the journal holds ``lines`` lines: (seconds to
     exit, stderr, {pid: start} of its workers then)."""
-    # a terminal's foreground job has SIGINT's default action; a test run started in the
-    # background by a script inherits it ignored, and so would the command, unless the
-    # disposition here is a handler (which exec resets to the default)
-    before = signal.signal(signal.SIGINT, signal.default_int_handler)
-    try:
-        job = subprocess.Popen(command, cwd=ROOT, stdout=subprocess.DEVNULL,
-                               stderr=subprocess.PIPE, text=True, start_new_session=True)
-    finally:
-        signal.signal(signal.SIGINT, signal.SIG_DFL if before is None else before)
+    job = popen_as_terminal(command, cwd=ROOT, stdout=subprocess.DEVNULL,
+                            stderr=subprocess.PIPE, text=True)
     workers: dict[int, str] = {}
     try:
         deadline = time.monotonic() + 120
