@@ -183,6 +183,7 @@ optimize_scenario(sys.argv[1], budget="small", run_dir=sys.argv[3], workers=2,
 """
 
 
+@pytest.mark.slow  # CI's second pass (.ci/run): the default suite stays under 5 minutes
 def test_kill_9_during_the_second_look_then_the_same_command_resumes_to_the_same_result(
         small_run, tmp_path):
     _, reference = small_run
@@ -233,6 +234,7 @@ def _ctrl_c_at(command: list[str], journal: Path, lines: int) -> tuple[float, st
 
 
 @pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="reads processes in /proc")
+@pytest.mark.slow  # CI's second pass (.ci/run): the default suite stays under 5 minutes
 def test_ctrl_c_ends_optimize_at_once_in_one_line_and_the_same_command_resumes(small_run,
                                                                                tmp_path):
     # causality_switch's simulations take about a second, so a worker is mid-simulation
