@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import asyncio
 import json
+import os
 import shutil
 import signal
 import subprocess
@@ -98,6 +99,10 @@ class Server:
         """Ctrl-C; (exit status, stdout, stderr)."""
         if self.proc.poll() is None:
             self.proc.send_signal(signal.SIGINT)
-        code = self.proc.wait(timeout=timeout)
+        try:
+            code = self.proc.wait(timeout=timeout)
+        except subprocess.TimeoutExpired:  # fail, leaving nothing behind
+            os.killpg(self.proc.pid, signal.SIGKILL)
+            raise
         time.sleep(0.1)  # the reader threads take the last lines
         return code, "".join(self.out), "".join(self.err)
