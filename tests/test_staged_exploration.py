@@ -8,22 +8,10 @@ import pickle
 import numpy as np
 import pytest
 
-from rgmcad.learning import BoxRegion, LearningSettings, OracleEvent, ProductOracle
+from rgmcad.learning import LearningSettings
 from rgmcad.learning.moves import event_masks, free_coordinates, staged
+from rgmcad.learning.oracles import chain_oracle
 from rgmcad.learning.sampling import explore
-
-
-def _chain(d: int, width: float, seed: int) -> ProductOracle:
-    # d / 2 events in a row, event k on its own coordinates 2k and 2k + 1 (as
-    # tools/exploration_chains.py)
-    rng = np.random.default_rng(1000 + seed)
-    events, parents = {}, ()
-    for k in range(d // 2):
-        low = rng.uniform(0.0, 1.0 - width, 2)
-        events[f"e{k}"] = OracleEvent(parents, (2 * k, 2 * k + 1),
-                                      BoxRegion(tuple(low), tuple(low + width)))
-        parents = (f"e{k}",)
-    return ProductOracle(d, events)
 
 
 def test_a_draw_keeps_the_coordinates_of_what_its_parent_achieved():
@@ -52,7 +40,7 @@ def test_a_success_is_varied_one_event_at_a_time():
 
 
 def test_off_it_is_the_papers_exploration_bit_for_bit():
-    oracle = _chain(8, 0.5, 0)
+    oracle = chain_oracle(8, 0.5, 0)
     settings = LearningSettings(n_initial=64, n_successes=20, exploration_batch=10,
                                 exploration_max_iter=30)
     assert settings.exploration_staged == 0.0
@@ -75,7 +63,7 @@ def test_in_stages_a_long_chain_is_found_where_the_papers_draws_stall():
     # samples: tools/exploration_chains.py --width 0.4 --setting exploration_staged)
     settings = LearningSettings()
     for seed in (0, 2):
-        oracle = _chain(18, 0.4, seed)
+        oracle = chain_oracle(18, 0.4, seed)
         found = explore(oracle, settings.replace(exploration_staged=1.0),
                         np.random.default_rng(seed))
         assert found.n_global_successes >= settings.n_successes, seed

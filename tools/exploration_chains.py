@@ -19,19 +19,9 @@ import time
 
 import numpy as np
 
-from rgmcad.learning import BoxRegion, LearningSettings, OracleEvent, ProductOracle
+from rgmcad.learning import LearningSettings
+from rgmcad.learning.oracles import chain_oracle
 from rgmcad.learning.sampling import explore
-
-
-def chain(d: int, width: float, seed: int) -> ProductOracle:
-    rng = np.random.default_rng(1000 + seed)
-    events, parents = {}, ()
-    for k in range(d // 2):
-        low = rng.uniform(0.0, 1.0 - width, 2)
-        events[f"e{k}"] = OracleEvent(parents, (2 * k, 2 * k + 1),
-                                      BoxRegion(tuple(low), tuple(low + width)))
-        parents = (f"e{k}",)
-    return ProductOracle(d, events)
 
 
 def main() -> None:
@@ -52,7 +42,7 @@ def main() -> None:
         cells, reached = [], []
         start = time.perf_counter()
         for seed in range(args.seeds):
-            found = explore(chain(args.d, args.width, seed), settings,
+            found = explore(chain_oracle(args.d, args.width, seed), settings,
                             np.random.default_rng(seed))
             if found.n_global_successes >= settings.n_successes:
                 reached.append(len(found.X))

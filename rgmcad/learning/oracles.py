@@ -25,6 +25,7 @@ __all__ = [
     "BallRegion",
     "OracleEvent",
     "ProductOracle",
+    "chain_oracle",
 ]
 
 
@@ -333,3 +334,18 @@ class ProductOracle:
         digest = hashlib.blake2b(np.ascontiguousarray(x, dtype=float).tobytes(), digest_size=16)
         words = np.frombuffer(digest.digest(), dtype=np.uint32)
         return np.random.default_rng([self.seed, *words.tolist()]).random(n)
+
+
+def chain_oracle(d: int, width: float, seed: int) -> ProductOracle:
+    """A synthetic machine of ``d // 2`` events in a row: event k happens when coordinates
+    2k and 2k + 1 fall in a box of side ``width`` placed at random (seed ``seed``), and only
+    after event k - 1. The structure a real chain's parameters mostly have (each event
+    depends on the parts it moves), stripped of everything else."""
+    rng = np.random.default_rng(1000 + seed)
+    events, parents = {}, ()
+    for k in range(d // 2):
+        low = rng.uniform(0.0, 1.0 - width, 2)
+        events[f"e{k}"] = OracleEvent(parents, (2 * k, 2 * k + 1),
+                                      BoxRegion(tuple(low), tuple(low + width)))
+        parents = (f"e{k}",)
+    return ProductOracle(d, events)
