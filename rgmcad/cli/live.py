@@ -4,25 +4,18 @@ start is refused in one line (status 2), as by every command; later errors show 
 
 from __future__ import annotations
 
-import argparse
 import os
 import sys
 from pathlib import Path
 
 from rgmcad.cli.common import add_scenario_arg, load_scenario_arg, parts_dir_arg, say
+from rgmcad.cli.paths import whole_number
 
 DEFAULT_PORT = 8767
 
 
-def port_number(text: str) -> int:
-    """``type=`` of ``--port``: 0 (a free port) to 65535."""
-    try:
-        port = int(text)
-    except ValueError:
-        port = -1
-    if not 0 <= port <= 65535:
-        raise argparse.ArgumentTypeError(f"expected a port from 0 (a free one) to 65535, got {text!r}")
-    return port
+port_number = whole_number(0, 65535, "a port from 0 (a free one) to 65535")
+"""``type=`` of ``--port``: 0 (a free port) to 65535."""
 
 
 def configure(p) -> None:

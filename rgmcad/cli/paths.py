@@ -29,20 +29,25 @@ def default_build_dir() -> Path:
     return user_cache_path("rgmcad", appauthor=False) / "parts"
 
 
-def pixels(low: int, high: int):
-    """``type=`` of a size in pixels: a whole number from ``low`` to ``high``."""
+def whole_number(low: int, high: int, what: str = "a whole number from {low} to {high}"):
+    """``type=`` of a whole number from ``low`` to ``high``; ``what`` says what is allowed."""
+    allowed = what.format(low=low, high=high)
 
     def parse(text: str) -> int:
-        allowed = f"expected a whole number of pixels from {low} to {high}, got {text!r}"
         try:
             n = int(text)
         except ValueError:
-            raise argparse.ArgumentTypeError(allowed) from None
+            raise argparse.ArgumentTypeError(f"expected {allowed}, got {text!r}") from None
         if not low <= n <= high:
-            raise argparse.ArgumentTypeError(allowed)
+            raise argparse.ArgumentTypeError(f"expected {allowed}, got {text!r}")
         return n
 
     return parse
+
+
+def pixels(low: int, high: int):
+    """``type=`` of a size in pixels: a whole number from ``low`` to ``high``."""
+    return whole_number(low, high, "a whole number of pixels from {low} to {high}")
 
 
 def finite(text: str) -> float:

@@ -15,22 +15,10 @@ from rgmcad.cli.common import (
     load_scenario_arg,
     say,
 )
-from rgmcad.cli.paths import output_dir
+from rgmcad.cli.paths import output_dir, whole_number
 from rgmcad.errors import UsageError
 
 SUPPORTS_FILE = "supports.json"
-
-
-def _count(text: str) -> int:
-    import argparse
-
-    try:
-        n = int(text)
-    except ValueError:
-        n = -1
-    if not 0 <= n <= 1000:
-        raise argparse.ArgumentTypeError(f"expected a whole number from 0 to 1000, got {text!r}")
-    return n
 
 
 def read_supports(path: str | None) -> list:
@@ -50,7 +38,7 @@ def configure(p) -> None:
     add_layout_args(p, vector=False)
     p.add_argument("--out", required=True, metavar="DIR",
                    help=f"folder for S1.stl, S1.step, S1-card.svg, ... and {SUPPORTS_FILE}")
-    p.add_argument("--runs", type=_count, default=50, metavar="N",
+    p.add_argument("--runs", type=whole_number(0, 1000), default=50, metavar="N",
                    help="perturbed runs (a hand's 2 mm / 2 degree errors and physical errors) "
                    "the stands must stay clear of, besides the nominal run (default: 50)")
     p.add_argument("--seed", type=int, default=0, help="seed of those runs' draws (default: 0)")
