@@ -111,16 +111,20 @@ def test_optimize_with_the_screen_says_what_it_did_and_otherwise_is_the_same_run
         return summary, (tmp_path / name / "report.md").read_text()
 
     plain, _ = run("plain")
-    screened, report = run("screened", close_in_copies=16)
     assert "close_in" not in plain
+    # whether this optimum is sound depends on the physics of the day (it was before the
+    # collision margins of 2026-12-07 and is not after): the screen's verdict is forced here
+    # and only what the run does with it is checked
+    real = close_in_module.close_in_sound
+    monkeypatch.setattr(close_in_module, "close_in_sound", lambda x, *a: (True, 16))
+    screened, report = run("screened", close_in_copies=16)
     close_in = screened["close_in"]
-    assert close_in["passed_over"] == [] and close_in["simulations"] == 16  # measured: sound
+    assert close_in["passed_over"] == [] and close_in["simulations"] == 16
     assert screened["vector"] == plain["vector"] and screened["source"] == plain["source"]
     assert screened["simulations_by_stage"]["close-in screen"] == 16
     assert screened["evaluations"] == plain["evaluations"] + 16
     assert "within 1/300 of itself (a knife-edge screen): it did." in report
     # the same run, its returned layout on a knife edge: the layout it came from instead
-    real = close_in_module.close_in_sound
     knife = np.asarray(plain["vector"])
     monkeypatch.setattr(close_in_module, "close_in_sound", lambda x, *a: (
         (False, 16) if np.array_equal(x, knife) else real(x, *a)))
