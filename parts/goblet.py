@@ -12,15 +12,18 @@ normal to their surfaces, and the analytic volume is outer frustum minus inner f
 
 Collision. One convex piece for the bottom slab (z in [0, wall]) and one per angular sector
 of the wall (z in [wall, H]), each the convex hull of the sector's corner points; the pieces
-never overlap. Straight chords stand for arcs, with these errors (numbers for 32 sectors):
+never overlap. Straight chords stand for arcs. Every corner sits at ``push`` = (1 + 1 /
+cos(pi / sectors)) / 2 times its circle's radius, so each flat face lies half-way between the
+chord through the circle's points and the plane tangent to the circle at the sector's middle:
 
-* outer surface: the corners lie on the outer cone, so the pieces stay inside the solid and
-  inside its bounding box, recessed by at most the sagitta R (1 - cos(pi / sectors))
-  (0.17 mm at R = 36 mm);
-* cavity: each piece's inner face is parallel to the plane tangent to the inner cone at the
-  sector's middle, half-way between that plane and the chord, so the collision cavity is off
-  by at most r (1 / cos(pi / sectors) - 1) / 2 either way (0.08 mm at r = 34 mm): narrower at
-  each sector's middle, wider at its edges.
+* every surface (outside, cavity, the bottom's rim) is off by at most
+  R (1 / cos(pi / sectors) - 1) / 2 either way: inside at each sector's middle, outside at
+  its edges (0.09 mm at R = 36 mm for 32 sectors; 0.1 mm at R = 41.7 mm);
+* the wall's two faces are parallel planes, so the wall is its thickness to within
+  wall (1 / cos(pi / sectors) - 1) (0.01 mm for a 2 mm wall, 32 sectors) at any radius.
+  With the outer corners on the outer circle instead (the pieces inside the solid), the wall
+  was thinner than its CAD by R (1 - cos(pi / sectors)) / 2 and broke the 0.1 mm law above
+  R = 34 mm (docs/decisions.md, 2026-12-08).
 """
 
 import math
@@ -47,8 +50,6 @@ class Params:
         floor_r, rim_r = _inner_radii(self)
         if min(floor_r, rim_r) <= 0:
             return "wall too thick for the radii: the cavity would vanish"
-        if max(floor_r, rim_r) * (_inner_push(self) - 1) >= _inset(self) / 2:
-            return "wall too thin for the number of sectors: raise sectors"
         return None
 
 
@@ -79,8 +80,8 @@ def _inner_radii(p: Params) -> tuple[float, float]:
     return _outer_radius(p, p.wall) - d, p.top_radius - d
 
 
-def _inner_push(p: Params) -> float:
-    """Factor on the cavity's radius giving the inner corners of the wall pieces."""
+def _push(p: Params) -> float:
+    """Factor on a circle's radius giving the corners of the pieces (see the docstring)."""
     return (1 + 1 / math.cos(math.pi / p.sectors)) / 2
 
 
@@ -115,17 +116,15 @@ def collision(p: Params):
     height = _outer_height(p)
     floor_r, rim_r = _inner_radii(p)
     angles = np.linspace(0, 2 * math.pi, p.sectors, endpoint=False)
+    push = _push(p)
     bottom = np.vstack([
-        _ring(p.bottom_radius, 0.0, angles),
-        _ring(_outer_radius(p, p.wall), p.wall, angles),
+        _ring(p.bottom_radius * push, 0.0, angles),
+        _ring(_outer_radius(p, p.wall) * push, p.wall, angles),
     ])
     pieces = [ConvexPiece(bottom)]
     # The wall's cross-section is a parallelogram: inner and outer edge at z = wall and z = H.
-    # Inner corners sit half-way between the cavity's circle and the radius at which the chord
-    # between them would touch it.
-    push = _inner_push(p)
-    section = [(floor_r * push, p.wall), (_outer_radius(p, p.wall), p.wall),
-               (p.top_radius, height), (rim_r * push, height)]
+    section = [(floor_r * push, p.wall), (_outer_radius(p, p.wall) * push, p.wall),
+               (p.top_radius * push, height), (rim_r * push, height)]
     step = 2 * math.pi / p.sectors
     for a in angles:
         ends = np.array([a, a + step])

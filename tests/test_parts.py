@@ -251,15 +251,21 @@ def test_mass_properties_are_physical(built, name):
                                    atol=0.02 * np.abs(body.inertia_unit).max())
 
 
+CHORDS = {"goblet": 1e-4}
+"""m: families whose pieces' flat faces stand for curved ones, each face half-way between the
+chord and the tangent (parts/goblet.py), so up to this far outside the solid."""
+
+
 @pytest.mark.parametrize("name", SOLIDS)
 def test_pieces_lie_inside_the_bounding_box(built, name):
+    reach = CHORDS.get(name, 1e-6)
     for body in bodies(built, name):
         assert body.pieces
         for piece in body.pieces:
             assert not isinstance(piece, PlanePiece)
             corners = piece_corners(piece)
-            assert np.all(corners >= body.bbox[0] - 1e-6), piece
-            assert np.all(corners <= body.bbox[1] + 1e-6), piece
+            assert np.all(corners >= body.bbox[0] - reach), piece
+            assert np.all(corners <= body.bbox[1] + reach), piece
 
 
 @pytest.mark.parametrize("name", SOLIDS)
