@@ -209,3 +209,63 @@ def test_a_results_table_is_made_from_its_json_and_a_page_cannot_lose_one(tmp_pa
     assert "50 % [40, 60]" in fill(page, tmp_path)  # a new measurement, a new table
     with pytest.raises(ValueError, match="no table is made from docs/other.json"):
         fill("<!-- table: docs/other.json -->", ROOT)
+
+
+def _benchmark(revision, ours=0.6, cma=0.5, physics=(0.4, 0.2)):
+    def row(method, label, rho, phys, sims):
+        return {"method": method, "label": label, "trials": 3, "rho_g_mean": rho,
+                "rho_g_se": 0.01, "physics_rho_g_mean": phys, "physics_rho_g_se": 0.02,
+                "simulations_mean": sims, "time_s_mean": None if sims is None else 9.0,
+                "vectors": [[0.5] * 8] * 3}
+    table = {"scenario": "ballrun", "budget_sims": 1724, "seeds": [0, 1, 2],
+             "samples_per_radius": 20, "physics": {"friction": 0.2, "mass": 0.1,
+                                                   "restitution": 0.2},
+             "rows": [row("ours", "ours (factorised SPD)", ours, physics[0], 1711),
+                      row("cma", "CMA-ES", cma, physics[1], 1690),
+                      row("solved", "layout 'solved'", 0.45, 0.3, None)]}
+    if revision:
+        table["physics_revision"] = revision
+    return table
+
+
+def test_a_benchmark_table_says_which_physics_measured_it(tmp_path):
+    # the user's view: a results page shows the benchmark's rows and, under them, the file and
+    # the physics it was measured under; figures of superseded physics carry a warning
+    import json as _json
+
+    from rgmcad.reference.results import fill
+    from rgmcad.sim.revision import PHYSICS_REVISION
+
+    runs = tmp_path / "docs" / "results" / "runs"
+    runs.mkdir(parents=True)
+    (runs / "benchmark-ballrun.json").write_text(_json.dumps(_benchmark(PHYSICS_REVISION)))
+    page = fill("<!-- table: docs/results/runs/benchmark-ballrun.json -->", tmp_path)
+    assert "| CMA-ES | 3 | 0.500 +- 0.010 |" in page and "B = 1,724 simulations" in page
+    assert "measured under the current physics" in page and "warning" not in page
+    (runs / "benchmark-ballrun.json").write_text(_json.dumps(_benchmark("2026-12-01")))
+    page = fill("<!-- table: docs/results/runs/benchmark-ballrun.json -->", tmp_path)
+    assert '!!! warning "Measured under earlier physics"' in page and "2026-12-01" in page
+    (runs / "benchmark-ballrun.json").write_text(_json.dumps(_benchmark(None)))
+    assert "before 2026-12-08" in fill(
+        "<!-- table: docs/results/runs/benchmark-ballrun.json -->", tmp_path)
+
+
+def test_the_glance_compares_ours_with_the_best_baseline_of_every_benchmark(tmp_path):
+    import json as _json
+
+    from rgmcad.reference.results import fill
+    from rgmcad.sim.revision import PHYSICS_REVISION
+
+    runs = tmp_path / "docs" / "results" / "runs"
+    runs.mkdir(parents=True)
+    (runs / "benchmark-ballrun.json").write_text(_json.dumps(_benchmark(PHYSICS_REVISION)))
+    other = _benchmark(PHYSICS_REVISION, ours=0.3, cma=0.6, physics=(0.2, 0.25))
+    other["scenario"] = "teapot"
+    (runs / "benchmark-teapot.json").write_text(_json.dumps(other))
+    page = fill("<!-- table: docs/results/runs/benchmark-*.json -->", tmp_path)
+    lines = {line.split(" | ")[0]: line for line in page.splitlines() if line.startswith("| ")}
+    assert "0.600 / 0.400 (3 trials) | CMA-ES 0.500 / CMA-ES 0.200 | 1.20x / 2.00x" \
+        in lines["| ballrun"]
+    assert "0.50x / 0.80x" in lines["| teapot"]  # a loss reads as a loss
+    assert "layout 'solved' 0.450 / 0.300" in lines["| ballrun"]  # a given layout: no baseline
+    assert "benchmark-ballrun.json`, `docs/results/runs/benchmark-teapot.json" in page

@@ -29,6 +29,7 @@ from rgmcad.runs.workflow import optimize_scenario
 from rgmcad.scene.design_space import vector_from_values
 from rgmcad.scene.layout_files import resolve_layout
 from rgmcad.scene.perturbation import DEFAULT_PHYSICS
+from rgmcad.sim.revision import PHYSICS_REVISION
 
 
 def reference_rate(path: str, layout: str, seed: int, workers: int) -> dict:
@@ -106,7 +107,8 @@ def main() -> int:
                  "simulations": summary["simulations"],
                  "simulations_by_stage": summary["simulations_by_stage"],
                  "optimize_seconds": time.perf_counter() - start,
-                 "headline": hand_headline(summary["hand"])}
+                 "headline": hand_headline(summary["hand"]),
+                 "physics_revision": PHYSICS_REVISION}
         if not args.double:
             scenario = problem_layouts(str(path))
             reference = "solved" if "solved" in scenario else "hand" if "hand" in scenario \

@@ -23,14 +23,13 @@ import json
 import sys
 from pathlib import Path
 
-import numpy as np
-
 from rgmcad.files import write_json_atomic
-from rgmcad.runs.hand import DEFAULT_HAND, rate_text
+from rgmcad.reference.results import physics_settings_table
+from rgmcad.runs.hand import DEFAULT_HAND
 from rgmcad.runs.problem import ScenarioContext
-from rgmcad.runs.robustness import wilson_interval
 from rgmcad.scene.design_space import values_from_mapping
 from rgmcad.scene.perturbation import DEFAULT_PHYSICS, PhysicsDraw
+from rgmcad.sim.revision import PHYSICS_REVISION
 
 SCENARIOS = ["simple", "ballrun", "branching", "causality_switch", "long_chain", "teapot"]
 VARIANTS = {"as written": (1.0, 1), "dt / 2": (0.5, 1), "iterations x 2": (1.0, 2),
@@ -81,37 +80,6 @@ def measure(path: str, draws: int, seed: int, done: dict, save) -> dict:
     return done
 
 
-def rows(results: dict) -> list[str]:
-    """The markdown table of the stored results."""
-    from scipy.stats import binomtest
-
-    out = ["| scenario | settings | nominal | works when built by hand | flipped vs as written "
-           "(works -> fails / fails -> works) | paired p | s per build |",
-           "|---|---|---|---|---|---|---|"]
-    for scenario, variants in results["scenarios"].items():
-        base = [o for o, _ in variants["as written"]["builds"]]
-        for name, v in variants.items():
-            outcomes = [o for o, _ in v["builds"]]
-            n = min(len(outcomes), len(base))
-            wins = sum(o == "success" for o in outcomes)
-            low, high = wilson_interval(wins, len(outcomes))
-            lost = sum(a == "success" != b for a, b in zip(base[:n], outcomes[:n], strict=True))
-            won = sum(b == "success" != a for a, b in zip(base[:n], outcomes[:n], strict=True))
-            outcome, resolved, _ = v["nominal"]
-            nominal = outcome + ("" if resolved is None else f" at {resolved:.2f} s")
-            s = v["settings"]
-            settings = f"{name} ({s['timestep'] * 1000:g} ms, {s['solver_iterations']} it.)"
-            flips = "-" if name == "as written" else f"{lost} / {won}"
-            # exact McNemar test: are flips one way as likely as the other?
-            p = "-" if name == "as written" else (
-                f"{binomtest(min(lost, won), lost + won).pvalue:.2f}" if lost + won else "1.00")
-            seconds = np.mean([t for _, t in v["builds"]]) if v["builds"] else float("nan")
-            out.append(f"| {scenario} | {settings} | {nominal} | {wins}/{len(outcomes)}: "
-                       f"{rate_text(wins / max(len(outcomes), 1), float(low), float(high))} | "
-                       f"{flips} | {p} | {seconds:.3f} |")
-    return out
-
-
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("scenarios", nargs="*",
@@ -125,6 +93,10 @@ def main() -> None:
     results.setdefault("hand", DEFAULT_HAND.to_json())
     results.setdefault("physics", DEFAULT_PHYSICS.to_json())
     results.setdefault("scenarios", {})
+    results.setdefault("physics_revision", PHYSICS_REVISION)
+    if results["physics_revision"] != PHYSICS_REVISION:
+        sys.exit(f"{args.out} was measured under the physics of {results['physics_revision']}, "
+                 f"this code's is {PHYSICS_REVISION}; give another --out")
     if results["seed"] != args.seed:
         sys.exit(f"{args.out} holds seed {results['seed']}; give another --out")
 
@@ -134,7 +106,7 @@ def main() -> None:
     for path in args.scenarios:
         done = results["scenarios"].setdefault(Path(path).stem, {})
         measure(path, args.draws, args.seed, done, save)
-    print("\n".join(rows(results)))
+    print(physics_settings_table(results))
 
 
 if __name__ == "__main__":

@@ -1,17 +1,28 @@
 """Results tables made from the measurements' JSON files, never copied by hand: a results page
-holds a marker ``<!-- table: PATH -->`` (PATH from the repository's root) and the site's build
-puts the table of that file in its place (``docs/hooks.py``)."""
+holds a marker ``<!-- table: PATH -->`` (PATH from the repository's root, a glob for the
+summary of several benchmarks) and the site's build puts the table of that file in its place
+(``docs/hooks.py``). Under each table, the file it came from and the physics revision it was
+measured under (:mod:`rgmcad.sim.revision`); a table measured under an earlier revision says
+so in a warning, so that a page never passes superseded figures off as current.
+"""
 
 from __future__ import annotations
 
+import fnmatch
 import json
 import re
 from collections.abc import Callable
 from pathlib import Path
 
-from rgmcad.runs.hand import rate_text
+import numpy as np
 
-__all__ = ["hand_table", "TABLES", "fill"]
+from rgmcad.runs.benchmark_table import power_note, table_rows
+from rgmcad.runs.hand import rate_text
+from rgmcad.runs.robustness import wilson_interval
+from rgmcad.sim.revision import PHYSICS_REVISION
+
+__all__ = ["hand_table", "physics_settings_table", "benchmark_table", "benchmarks_glance",
+           "TABLES", "fill"]
 
 MARKER = re.compile(r"<!-- table: (\S+) -->")
 
@@ -34,17 +45,145 @@ def hand_table(results: dict) -> str:
     return "\n".join(rows)
 
 
-TABLES: dict[str, Callable[[dict], str]] = {"docs/hand-acceptance.json": hand_table}
-"""The files a marker may name, and the table each makes."""
+def physics_settings_table(results: dict) -> str:
+    """``tools/physics_settings.py``'s results: each scenario's `solved` layout under the
+    time step and solver iterations as written and three finer variants, nominal and built by
+    hand, with the builds that flipped against the settings as written (paired by draw)."""
+    from scipy.stats import binomtest
+
+    out = ["| scenario | settings | nominal | works when built by hand | flipped vs as written "
+           "(works -> fails / fails -> works) | paired p | s per build |",
+           "|---|---|---|---|---|---|---|"]
+    for scenario, variants in results["scenarios"].items():
+        base = [o for o, _ in variants["as written"]["builds"]]
+        for name, v in variants.items():
+            outcomes = [o for o, _ in v["builds"]]
+            n = min(len(outcomes), len(base))
+            wins = sum(o == "success" for o in outcomes)
+            low, high = wilson_interval(wins, len(outcomes))
+            lost = sum(a == "success" != b for a, b in zip(base[:n], outcomes[:n], strict=True))
+            won = sum(b == "success" != a for a, b in zip(base[:n], outcomes[:n], strict=True))
+            outcome, resolved, _ = v["nominal"]
+            nominal = outcome + ("" if resolved is None else f" at {resolved:.2f} s")
+            s = v["settings"]
+            settings = f"{name} ({s['timestep'] * 1000:g} ms, {s['solver_iterations']} it.)"
+            flips = "-" if name == "as written" else f"{lost} / {won}"
+            # exact McNemar test: are flips one way as likely as the other?
+            p = "-" if name == "as written" else (
+                f"{binomtest(min(lost, won), lost + won).pvalue:.2f}" if lost + won else "1.00")
+            seconds = np.mean([t for _, t in v["builds"]]) if v["builds"] else float("nan")
+            out.append(f"| {scenario} | {settings} | {nominal} | {wins}/{len(outcomes)}: "
+                       f"{rate_text(wins / max(len(outcomes), 1), float(low), float(high))} | "
+                       f"{flips} | {p} | {seconds:.3f} |")
+    return "\n".join(out)
+
+
+def benchmark_table(table: dict) -> str:
+    """One ``rgmcad benchmark`` (its ``benchmark.json``): a row per method and given layout,
+    rho_g under placement errors and with physical errors too, paired against ours."""
+    head = (f"B = {table['budget_sims']:,} simulations per method run; "
+            f"{len(table['seeds'])} trials (seeds {table['seeds'][0]}-{table['seeds'][-1]}); "
+            f"rho_l from {table['samples_per_radius']} valid layouts per radius.")
+    if table.get("earlier_rows"):
+        head += " Rows of earlier calls in the same folder: " + ", ".join(
+            table["earlier_rows"]) + "."
+    note = power_note(table)
+    return "\n".join([head, "", *table_rows(table)] + (["", note] if note else []))
+
+
+def _best_baseline(rows: list[dict], key: str) -> dict | None:
+    others = [r for r in rows if r["method"] not in ("ours",) and r.get(f"{key}_mean") is not None
+              and r.get("simulations_mean") is not None]
+    return max(others, key=lambda r: r[f"{key}_mean"], default=None)
+
+
+def benchmarks_glance(tables: dict[str, dict]) -> str:
+    """Several benchmarks, one line each: ours, the best baseline and their ratio, under
+    placement errors / with physical errors too, and a given layout's row where there is one."""
+    out = ["| scenario | d | B | ours | best baseline | ours / best | given layout |",
+           "|---|---|---|---|---|---|---|"]
+    for table in tables.values():
+        rows = {r["method"]: r for r in table["rows"]}
+        ours = rows.get("ours")
+        if ours is None:
+            continue
+        cells = {"ours": [], "best": [], "ratio": []}
+        for key in ("rho_g", "physics_rho_g"):
+            best = _best_baseline(table["rows"], key)
+            mine = ours.get(f"{key}_mean")
+            cells["ours"].append("-" if mine is None else f"{mine:.3f}")
+            cells["best"].append("-" if best is None else
+                                 f"{best['label'].split(' ')[0]} {best[f'{key}_mean']:.3f}")
+            cells["ratio"].append("-" if best is None or mine is None or not best[f"{key}_mean"]
+                                  else f"{mine / best[f'{key}_mean']:.2f}x")
+        given = [r for r in table["rows"] if r.get("simulations_mean") is None]
+        given_text = "; ".join(
+            f"{r['label']} {r['rho_g_mean']:.3f} / " + (
+                "-" if r.get("physics_rho_g_mean") is None else f"{r['physics_rho_g_mean']:.3f}")
+            for r in given) or "-"
+        d = len(ours["vectors"][0]) if ours.get("vectors") else "?"
+        out.append(f"| {table['scenario']} | {d} | {table['budget_sims']:,} | "
+                   f"{' / '.join(cells['ours'])} ({ours['trials']} trials) | "
+                   f"{' / '.join(cells['best'])} | {' / '.join(cells['ratio'])} | {given_text} |")
+    return "\n".join(out)
+
+
+TABLES: dict[str, Callable[[dict], str]] = {
+    "docs/hand-acceptance.json": hand_table,
+    "docs/physics-settings.json": physics_settings_table,
+    "docs/results/runs/benchmark-*.json": benchmark_table,
+}
+"""The files a marker may name (fnmatch patterns), and the table each makes."""
+
+GLANCES: dict[str, Callable[[dict[str, dict]], str]] = {
+    "docs/results/runs/benchmark-*.json": benchmarks_glance,
+}
+"""Globs a marker may name for one table over every file that matches."""
+
+
+def _revision(data) -> str | None:
+    """The physics revision a file records (hand-acceptance.json: per entry, the oldest)."""
+    if "physics_revision" in data:
+        return data["physics_revision"]
+    entries = [v for v in data.values() if isinstance(v, dict)]
+    revisions = [v.get("physics_revision") for v in entries]
+    if entries and "scenario" in entries[0]:
+        return None if None in revisions else min(revisions)
+    return None
+
+
+def _provenance(names: list[str], revisions: list[str | None]) -> str:
+    files = ", ".join(f"`{n}`" for n in names)
+    stale = sorted({r or "before 2026-12-08" for r in revisions if r != PHYSICS_REVISION})
+    if not stale:
+        return f"\n\n*From {files}, measured under the current physics ({PHYSICS_REVISION}).*"
+    return (f"\n\n!!! warning \"Measured under earlier physics\"\n    From {files}, measured "
+            f"under the physics of {', '.join(stale)}; the simulation has changed since "
+            f"(current: {PHYSICS_REVISION}, see the engineering log): these figures are to be "
+            "measured again.")
+
+
+def _load(path: Path) -> dict:
+    return json.loads(path.read_text(encoding="utf-8"))
 
 
 def fill(markdown: str, root: Path) -> str:
-    """``markdown`` with each marker replaced by its file's table; an unknown file is an
-    error (a page must not quietly lose its table)."""
+    """``markdown`` with each marker replaced by its file's table and provenance; an unknown
+    or missing file is an error (a page must not quietly lose its table)."""
     def table(match):
         name = match.group(1)
-        if name not in TABLES:
+        if name in GLANCES:
+            paths = sorted(root.glob(name))
+            if not paths:
+                raise ValueError(f"no file matches {name}")
+            data = {p.name: _load(p) for p in paths}
+            names = [str(p.relative_to(root)) for p in paths]
+            return GLANCES[name](data) + _provenance(names, [_revision(d) for d in data.values()])
+        maker = next((m for pattern, m in TABLES.items() if fnmatch.fnmatchcase(name, pattern)),
+                     None)
+        if maker is None:
             raise ValueError(f"no table is made from {name}; known: {', '.join(TABLES)}")
-        return TABLES[name](json.loads((root / name).read_text(encoding="utf-8")))
+        data = _load(root / name)
+        return maker(data) + _provenance([name], [_revision(data)])
 
     return MARKER.sub(table, markdown)

@@ -61,6 +61,7 @@ from rgmcad.runs.problem import ScenarioProblem, scenario_digest, simulate_layou
 from rgmcad.runs.starts import safe_name
 from rgmcad.runs.store import RecordedProblem, RunStore, identity_differences, run_identity
 from rgmcad.scene.perturbation import DEFAULT_PHYSICS, PhysicsRanges
+from rgmcad.sim.revision import PHYSICS_REVISION
 
 __all__ = ["METHODS", "DEFAULT_METHODS", "LEARNERS", "LABELS", "TRIAL", "TABLE_MD",
            "TABLE_JSON", "PLOT", "run_benchmark", "budget_of_ours", "evaluate_trial"]
@@ -398,6 +399,7 @@ def run_benchmark(scenario_path, out_dir, *, methods=DEFAULT_METHODS, trials: in
     table["earlier_rows"] = [labels[t] for t in earlier]
     table["physics"] = None if physics is None else physics.to_json()
     table["wall_time"] = time.perf_counter() - start
+    table["physics_revision"] = PHYSICS_REVISION
     write_json_atomic(out / TABLE_JSON, table)
     write_atomic(out / TABLE_MD, table_markdown(table))
     plot_benchmark(table, out / PLOT)

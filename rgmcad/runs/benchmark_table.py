@@ -10,7 +10,7 @@ import numpy as np
 
 from rgmcad.files import naming
 
-__all__ = ["DETECT", "build_table", "table_markdown", "plot_benchmark"]
+__all__ = ["DETECT", "build_table", "table_rows", "power_note", "table_markdown", "plot_benchmark"]
 
 
 def _mean_of(values) -> float | None:
@@ -92,19 +92,56 @@ def _evaluation_power(evaluations: dict, samples: int) -> dict:
     return {"rho_g_se": se, "samples_for_0.05": _needed(np.sqrt(2) * se, samples)}
 
 
+def _num(v, f="{:.3f}"):
+    return "n/a" if v is None or (isinstance(v, float) and np.isnan(v)) else f.format(v)
+
+
+def _diff(pair) -> str:
+    if pair is None:
+        return ""
+    need = pair.get("trials_for_0.05")
+    return (f"{pair['mean_difference']:+.3f} +- {_num(pair['se'])} (p "
+            f"{_num(pair['p_value'], '{:.2g}')}" + (f"; {need} trials for 0.05)" if need
+                                                     else ")"))
+
+
+def table_rows(table: dict) -> list[str]:
+    """The table's Markdown rows (head included), one per method or given layout."""
+    phys = table.get("physics")
+    head = "| method | trials | rho_g (mean +- s.e.) | paired diff. vs ours (p) | "
+    rule = "|---|---|---|---|"
+    if phys:
+        head += "rho_g placement + physics | paired diff. vs ours (p) | "
+        rule += "---|---|"
+    lines = [head + "simulations used | time (s, one core) |", rule + "---|---|"]
+    for r in table["rows"]:
+        cells = f"| {r['label']} | {r['trials']} | {r['rho_g_mean']:.3f} +- " \
+                f"{_num(r['rho_g_se'])} | {_diff(r.get('paired_vs_ours'))} | "
+        if phys:
+            cells += (f"{_num(r.get('physics_rho_g_mean'))} +- "
+                      f"{_num(r.get('physics_rho_g_se'))} | "
+                      f"{_diff(r.get('physics_paired_vs_ours'))} | ")
+        lines.append(cells + f"{_num(r['simulations_mean'], '{:.0f}')} | "
+                     f"{_num(r['time_s_mean'], '{:.1f}')} |")
+    return lines
+
+
+def power_note(table: dict) -> str:
+    """What the evaluations and trials can tell apart (empty if the table has no power)."""
+    power = table.get("evaluation_power")
+    if not power:
+        return ""
+    return (f"Power for a difference of {DETECT} (two-sided 5 %, 80 % power, normal "
+            f"approximation): one layout's rho_g is estimated with s.e. "
+            f"{power['rho_g_se']:.3f} at {table['samples_per_radius']} layouts per "
+            f"radius, so two layouts {DETECT} apart are told apart by their evaluations "
+            f"with about {power['samples_for_0.05']} per radius; \"trials for "
+            f"{DETECT}\" is the number of seeds the paired test needs at the spread of "
+            "the differences observed.")
+
+
 def table_markdown(table: dict) -> str:
     """The table as Markdown, like the paper's Table 1."""
-    def num(v, f="{:.3f}"):
-        return "n/a" if v is None or (isinstance(v, float) and np.isnan(v)) else f.format(v)
-
-    def diff(pair):
-        if pair is None:
-            return ""
-        need = pair.get("trials_for_0.05")
-        return (f"{pair['mean_difference']:+.3f} +- {num(pair['se'])} (p "
-                f"{num(pair['p_value'], '{:.2g}')}" + (f"; {need} trials for 0.05)" if need
-                                                        else ")"))
-
     phys = table.get("physics")
     lines = [f"# Benchmark: {table['scenario']}", "",
              f"B = {table['budget_sims']} simulations per method run (every simulation ours "
@@ -120,29 +157,10 @@ def table_markdown(table: dict) -> str:
         lines += ["Rows finished by earlier calls in this folder under the same protocol (the "
                   "same scenario file, budget, trials, samples and physical errors), not run "
                   "again: " + ", ".join(table["earlier_rows"]) + ".", ""]
-    head = "| method | trials | rho_g (mean +- s.e.) | paired diff. vs ours (p) | "
-    rule = "|---|---|---|---|"
-    if phys:
-        head += "rho_g placement + physics | paired diff. vs ours (p) | "
-        rule += "---|---|"
-    lines += [head + "simulations used | time (s, one core) |", rule + "---|---|"]
-    for r in table["rows"]:
-        cells = f"| {r['label']} | {r['trials']} | {r['rho_g_mean']:.3f} +- " \
-                f"{num(r['rho_g_se'])} | {diff(r.get('paired_vs_ours'))} | "
-        if phys:
-            cells += (f"{num(r.get('physics_rho_g_mean'))} +- {num(r.get('physics_rho_g_se'))}"
-                      f" | {diff(r.get('physics_paired_vs_ours'))} | ")
-        lines.append(cells + f"{num(r['simulations_mean'], '{:.0f}')} | "
-                     f"{num(r['time_s_mean'], '{:.1f}')} |")
-    power = table.get("evaluation_power")
-    if power:
-        lines += ["", f"Power for a difference of {DETECT} (two-sided 5 %, 80 % power, normal "
-                  f"approximation): one layout's rho_g is estimated with s.e. "
-                  f"{power['rho_g_se']:.3f} at {table['samples_per_radius']} layouts per "
-                  f"radius, so two layouts {DETECT} apart are told apart by their evaluations "
-                  f"with about {power['samples_for_0.05']} per radius; \"trials for "
-                  f"{DETECT}\" is the number of seeds the paired test needs at the spread of "
-                  "the differences observed."]
+    lines += table_rows(table)
+    note = power_note(table)
+    if note:
+        lines += ["", note]
     return "\n".join(lines) + "\n"
 
 
