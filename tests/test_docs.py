@@ -269,3 +269,13 @@ def test_the_glance_compares_ours_with_the_best_baseline_of_every_benchmark(tmp_
     assert "0.50x / 0.80x" in lines["| teapot"]  # a loss reads as a loss
     assert "layout 'solved' 0.450 / 0.300" in lines["| ballrun"]  # a given layout: no baseline
     assert "benchmark-ballrun.json`, `docs/results/runs/benchmark-teapot.json" in page
+
+
+def test_a_section_from_the_log_is_flagged_when_the_physics_moves_on():
+    from rgmcad.reference.results import fill
+    from rgmcad.sim.revision import PHYSICS_REVISION
+
+    now = fill(f"<!-- measured under the physics of {PHYSICS_REVISION} -->", ROOT)
+    assert "current physics" in now and "warning" not in now
+    old = fill("<!-- measured under the physics of 2026-12-04 -->", ROOT)
+    assert old.startswith('!!! warning "Measured under earlier physics"') and "2026-12-04" in old

@@ -1,7 +1,8 @@
 """Results tables made from the measurements' JSON files, never copied by hand: a results page
 holds a marker ``<!-- table: PATH -->`` (PATH from the repository's root, a glob for the
 summary of several benchmarks) and the site's build puts the table of that file in its place
-(``docs/hooks.py``). Under each table, the file it came from and the physics revision it was
+(``docs/hooks.py``). A section quoting the engineering log holds ``<!-- measured under the
+physics of DATE -->`` instead. Under each table, the file it came from and the physics revision it was
 measured under (:mod:`rgmcad.sim.revision`); a table measured under an earlier revision says
 so in a warning, so that a page never passes superseded figures off as current.
 """
@@ -25,6 +26,9 @@ __all__ = ["hand_table", "physics_settings_table", "benchmark_table", "benchmark
            "TABLES", "fill"]
 
 MARKER = re.compile(r"<!-- table: (\S+) -->")
+MEASURED = re.compile(r"<!-- measured under the physics of (\S+) -->")
+"""A section whose figures come from the engineering log rather than a file says when they
+were measured; the build turns it into the note or warning a table gets."""
 
 
 def _rate(r: dict) -> str:
@@ -163,6 +167,16 @@ def _provenance(names: list[str], revisions: list[str | None]) -> str:
             "measured again.")
 
 
+def _measured(match) -> str:
+    revision = match.group(1)
+    if revision == PHYSICS_REVISION:
+        return f"*Measured under the current physics ({PHYSICS_REVISION}).*"
+    return (f"!!! warning \"Measured under earlier physics\"\n    The figures of this section "
+            f"were measured under the physics of {revision}; the simulation has changed since "
+            f"(current: {PHYSICS_REVISION}, see the engineering log): they are to be measured "
+            "again.")
+
+
 def _load(path: Path) -> dict:
     return json.loads(path.read_text(encoding="utf-8"))
 
@@ -186,4 +200,4 @@ def fill(markdown: str, root: Path) -> str:
         data = _load(root / name)
         return maker(data) + _provenance([name], [_revision(data)])
 
-    return MARKER.sub(table, markdown)
+    return MEASURED.sub(_measured, MARKER.sub(table, markdown))
