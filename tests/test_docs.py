@@ -258,7 +258,10 @@ def test_the_glance_compares_ours_with_the_best_baseline_of_every_benchmark(tmp_
 
     runs = tmp_path / "docs" / "results" / "runs"
     runs.mkdir(parents=True)
-    (runs / "benchmark-ballrun.json").write_text(_json.dumps(_benchmark(PHYSICS_REVISION)))
+    ballrun = _benchmark(PHYSICS_REVISION)
+    ballrun["rows"].append({**ballrun["rows"][0], "method": "full", "label": "ours, one model",
+                            "rho_g_mean": 0.9})  # ours too (Fig. 16), not a baseline
+    (runs / "benchmark-ballrun.json").write_text(_json.dumps(ballrun))
     other = _benchmark(PHYSICS_REVISION, ours=0.3, cma=0.6, physics=(0.2, 0.25))
     other["scenario"] = "teapot"
     (runs / "benchmark-teapot.json").write_text(_json.dumps(other))
