@@ -107,7 +107,7 @@ def benchmarks_glance(tables: dict[str, dict]) -> str:
     placement errors / with physical errors too, and a given layout's row where there is one."""
     out = ["| scenario | d | B | ours | best baseline | ours / best | given layout |",
            "|---|---|---|---|---|---|---|"]
-    for table in tables.values():
+    for table in sorted(tables.values(), key=lambda t: (t["scenario"], t["budget_sims"])):
         rows = {r["method"]: r for r in table["rows"]}
         ours = rows.get("ours")
         if ours is None:
