@@ -17,6 +17,7 @@ The runs are draw 0, 1, ... of :class:`~rgmcad.scene.perturbation.PhysicsDraw` u
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
@@ -321,23 +322,17 @@ def plan_supports(scenario: Scenario, values, parts: Mapping[str, BuiltPart],
     planes = base_planes(scene)
     held = holdings(scene, planes)
     bases = {h.fixed for h in scene.hinges if h.fixed is not None}
-    groups = [[make_site(scene, h, settings.placement)] for h in held if h.raised]
+    groups = [_sites(scene, h, planes, settings.placement, bool(bases & set(h.part.bodies)))
+              for h in held if h.raised]
     run_draws = draws(settings)
     engine, cache = Engine(renderer=False), PartCache()
     try:
         baseline = []
-        for k, draw in enumerate(run_draws):
+        for draw in run_draws:
             recorder = _Recorder()
             baseline.append(_states(_run(scenario, values, parts, draw, (recorder,),
                                          engine, cache)))
             recorder.block([site for group in groups for site in group])
-            if k == 0:  # posts, for hinged parts with no more than the least room under them
-                smallest = tuple(x / 1000 for x in settings.placement.sizes_mm[-1])
-                for group in groups:
-                    if bases & set(group[0].holding.part.bodies) and all(
-                            np.allclose(s.size, smallest) for s in group[0].choose(1)):
-                        group += side_sites(scene, group[0].holding)
-                        recorder.block(group[1:])
         by_site, made_by = _choose_all(groups)
         checks: list[RunCheck] = []
         rounds = 0
@@ -357,9 +352,35 @@ def plan_supports(scenario: Scenario, values, parts: Mapping[str, BuiltPart],
         cache.close()
     stands = tuple(s for group in by_site for s in group)
     unsupported = tuple((group[0].name, "no clear room for a stand under it"
-                         + (" nor for a post beside it" if len(group) > 1 else ""))
+                         + (" nor for a post beside it"
+                            if any(s.face_u is not None for s in group) else ""))
                         for group, stands in zip(groups, by_site, strict=True) if not stands)
     return SupportPlan(tuple(held), stands, unsupported, tuple(checks), rounds)
+
+
+AXLE_SIZES_MM = ((6.0, 4.0), (4.0, 4.0))
+"""Spacers smaller than any stand, tried last under a hinged part's fixed base (a lever's
+axle, 4 mm thick: a spacer the size of its end)."""
+
+
+def _sites(scene, holding: Holding, planes, placement: PlacementSettings,
+           hinged: bool) -> list[Site]:
+    """Where a raised part's stands may go, in the order tried: under it on its base (a
+    shelf, or a plane), under it on the nearest plane when its base is a shelf, then, for
+    a hinged part's base, posts beside its ends on each of those."""
+    bases = [holding]
+    if holding.base.outline is not None:  # a shelf: the plane below it is a base too
+        pts = np.concatenate([scene.bodies[n].world_vertices() for n in holding.part.bodies])
+        gaps = [(plane.gap(pts), plane) for plane in planes]
+        gap, plane = min([(g, p) for g, p in gaps if g > 0] or gaps, key=lambda gp: gp[0])
+        bases.append(Holding(holding.part, holding.held_by, gap, plane))
+    if hinged:
+        placement = dataclasses.replace(placement,
+                                        sizes_mm=placement.sizes_mm + AXLE_SIZES_MM)
+    out = [make_site(scene, h, placement) for h in bases]
+    if hinged:
+        out += [site for h in bases for site in side_sites(scene, h)]
+    return out
 
 
 def _choose_all(groups: Sequence[Sequence[Site]]) -> tuple[list[list[Stand]], dict]:
@@ -387,8 +408,6 @@ def _part_pose(scenario, values, parts, site: Site, draw, engine, cache) -> np.n
     def hook(world, t):
         if not seen:
             seen["pose"] = world.scene.bodies[site.holding.part.bodies[0]].pose
-
-    import dataclasses
 
     short = dataclasses.replace(scenario, settings=dataclasses.replace(
         scenario.settings, duration=scenario.settings.timestep))

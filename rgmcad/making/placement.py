@@ -98,12 +98,12 @@ class Site:
             to_local = matmul(to_local, matmul(self.part_pose, invert(part_pose)))
         p = transform_points(to_local, np.asarray(points, float).reshape(-1, 3))
         a, b, c = self.top
-        below = (p[:, 2] <= a * p[:, 0] + b * p[:, 1] + c + self._slack) & (p[:, 2] > -1e-4)
-        if self.shield is not None:  # inside the part's hull: the part stands between
-            below &= (p @ self.shield[:, :3].T + self.shield[:, 3]).max(axis=1) > -1e-4
-        idx = np.rint((p[below, :2] - self.origin) / self.settings.cell).astype(int)
+        p = p[(p[:, 2] <= a * p[:, 0] + b * p[:, 1] + c + self._slack) & (p[:, 2] > -1e-4)]
+        idx = np.rint((p[:, :2] - self.origin) / self.settings.cell).astype(int)
         m = self.settings.margin / self.settings.cell
         ok = np.all((idx >= -m) & (idx < np.array(self.blocked.shape) + m), axis=1)
+        if self.shield is not None and ok.any():  # inside the part's hull: the part between
+            ok[ok] = (p[ok] @ self.shield[:, :3].T + self.shield[:, 3]).max(axis=1) > -1e-4
         idx = idx[ok]
         if not len(idx):
             return 0
