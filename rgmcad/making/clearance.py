@@ -161,17 +161,19 @@ class _Recorder:
             if not kept:
                 continue
             poses = _matrices(kept) @ self.com[name]
-            for samples, centre, radius in _chunks(built):
-                world_centres = poses[:, :3, :3] @ centre + poses[:, :3, 3]
-                for site, (lo, hi) in zip(sites, boxes, strict=True):
-                    near = np.all((world_centres >= lo - radius - 0.005)
-                                  & (world_centres <= hi + radius + 0.005), axis=1)
+            chunks = _chunks(built)
+            for site in sites:
+                part = self.scene.bodies[site.holding.part.bodies[0]].pose
+                local = site.to_local(part) @ poses  # the body in the site's frame
+                lo, hi = site.bounds()
+                for samples, centre, radius in chunks:
+                    c = local[:, :3, :3] @ centre + local[:, :3, 3]
+                    near = np.all((c >= lo - radius) & (c <= hi + radius), axis=1)
                     if not near.any():
                         continue
-                    m = poses[near]
+                    m = local[near]
                     pts = np.einsum("tij,nj->tni", m[:, :3, :3], samples) + m[:, None, :3, 3]
-                    site.block(pts.reshape(-1, 3),
-                               self.scene.bodies[site.holding.part.bodies[0]].pose)
+                    site.block_local(pts.reshape(-1, 3))
 
 
 _CHUNKS: dict[int, tuple] = {}

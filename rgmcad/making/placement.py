@@ -93,10 +93,29 @@ class Site:
         """Block the cells under world ``points`` (n, 3) that lie below the top plane plus
         the margin. ``part_pose``: the part's pose when the points were recorded (its
         stands move with it), None: as designed. Returns the number of points that block."""
-        to_local = self._to_local
-        if part_pose is not None:
-            to_local = matmul(to_local, matmul(self.part_pose, invert(part_pose)))
-        p = transform_points(to_local, np.asarray(points, float).reshape(-1, 3))
+        p = transform_points(self.to_local(part_pose), np.asarray(points, float).reshape(-1, 3))
+        return self.block_local(p)
+
+    def to_local(self, part_pose: np.ndarray | None = None) -> np.ndarray:
+        """(4, 4) world to the site's frame, for points recorded with the part at
+        ``part_pose`` (None: as designed)."""
+        if part_pose is None:
+            return self._to_local
+        return matmul(self._to_local, matmul(self.part_pose, invert(part_pose)))
+
+    def bounds(self) -> np.ndarray:
+        """(2, 3) the box in the site's frame where a point may block a cell: the grid's
+        (u, v) widened by the margin, w from the base to the top's highest corner plus the
+        margin."""
+        lo = self.origin - self.settings.margin - self.settings.cell
+        hi = lo + self.settings.cell * np.array(self.blocked.shape) + 2 * (
+            self.settings.margin + self.settings.cell)
+        a, b, c = self.top
+        w = max(a * u + b * v + c for u in (lo[0], hi[0]) for v in (lo[1], hi[1]))
+        return np.array([[lo[0], lo[1], -1e-4], [hi[0], hi[1], w + self._slack]])
+
+    def block_local(self, p: np.ndarray) -> int:
+        """:meth:`block` for points (n, 3) already in the site's frame."""
         a, b, c = self.top
         p = p[(p[:, 2] <= a * p[:, 0] + b * p[:, 1] + c + self._slack) & (p[:, 2] > -1e-4)]
         idx = np.rint((p[:, :2] - self.origin) / self.settings.cell).astype(int)
