@@ -39,6 +39,8 @@ def side_sites(scene: Scene, holding: Holding, settings: PlacementSettings = POS
         for axis in (int(np.argmax(box[1] - box[0])),):  # its ends along its length
             for side, sign in ((0, -1.0), (1, 1.0)):
                 n = body.pose[:3, :3][:, axis] * sign
+                if float(n @ base.normal) < -0.95:  # the end pointing at the base
+                    out += _round_end(scene, holding, world, above, reach, settings)
                 if abs(float(n @ base.normal)) > 0.3:
                     continue
                 frame = base.frame()
@@ -58,10 +60,27 @@ def side_sites(scene: Scene, holding: Holding, settings: PlacementSettings = POS
     return out
 
 
-def _site(scene, holding, frame, local, u_face, above, reach, settings) -> Site:
+def _round_end(scene, holding, world, above, reach, settings) -> list[Site]:
+    """Posts beside the end of an axle that points at the base (ballrun's lever, its end
+    3.75 mm off the board): four sites, one each side of it, each a block on the base
+    against the axle's side, its top ``above`` m over the axle's end."""
+    out = []
+    for d in ((1.0, 0.0), (0.0, 1.0), (-1.0, 0.0), (0.0, -1.0)):
+        turn = np.eye(4)
+        turn[:2, :2] = [[d[0], -d[1]], [d[1], d[0]]]
+        frame = matmul(holding.base.frame(), turn)
+        local = transform_points(invert(frame), world)
+        end = float(local[:, 2].min())
+        near = local[local[:, 2] <= end + above]  # the axle's end, as high as the post
+        out.append(_site(scene, holding, frame, near, float(near[:, 0].max()), above, reach,
+                         settings, top=end + above))
+    return out
+
+
+def _site(scene, holding, frame, local, u_face, above, reach, settings, top=None) -> Site:
     lo, hi = local[:, :2].min(0) - reach, local[:, :2].max(0) + reach
     shape = tuple(int(k) for k in np.ceil((hi - lo) / settings.cell) + 1)
-    top = np.array([0.0, 0.0, float(local[:, 2].max()) + above])
+    top = np.array([0.0, 0.0, float(local[:, 2].max()) + above if top is None else top])
     site = Site(holding, frame, top, scene.bodies[holding.part.bodies[0]].pose.copy(), lo,
                 shape, np.zeros(shape, bool), settings)
     uu, vv = site.cell_centres()
