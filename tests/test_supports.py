@@ -190,3 +190,34 @@ def test_a_lever_axle_over_a_shelf_gets_a_post_against_its_end():
         ends = np.abs(axle[:, 1] - post.vertices()[:, 1].min()).min(), \
             np.abs(axle[:, 1] - post.vertices()[:, 1].max()).min()
         assert min(ends) < 1e-6  # its side is against the axle's end
+
+
+def test_an_axle_pointing_at_the_board_gets_posts_against_its_side_below_its_plank():
+    from rgmcad.making.beside import POST, side_sites
+
+    scene = _scene(ROOT / "scenarios" / "ballrun.toml", "solved")
+    (lever,) = [h for h in raised_parts(scene) if h.part.name == "base_plank"]
+    axle = scene.bodies["base_plank.axle"].world_vertices()
+    plank = scene.bodies["base_plank"].world_vertices()
+    assert axle[:, 1].min() > 0.003  # its end 3.75 mm off the board (y = 0): it floats
+    posts = [s for site in side_sites(scene, lever) for s in site.choose(1)]
+    assert len(posts) == 4  # one on each side of the axle
+    for post in posts:
+        v = post.vertices()
+        assert post.mesh().is_watertight and v[:, 1].min() == pytest.approx(0.0, abs=1e-9)
+        assert v[:, 1].max() > axle[:, 1].min() + 0.002  # up along the axle's end ...
+        assert v[:, 1].max() < plank[:, 1].min() - POST.margin  # ... and clear of its plank
+        gaps = [np.abs(axle[:, k][:, None] - v[:, k][None]).min() for k in (0, 2)]
+        assert min(gaps) < 1e-6  # a side against the axle's side
+        inside = [np.all((axle[:, k].min() < v[:, k]) & (v[:, k] < axle[:, k].max()))
+                  for k in (0, 2)]
+        assert not any(inside)  # beside the axle, not through it
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", ["ballrun", "long_chain"])
+def test_every_raised_part_of_a_shipped_layout_gets_an_untouched_stand(name):
+    plan = _plan(ROOT / "scenarios" / f"{name}.toml", "solved", 2)
+    assert plan.raised and not plan.unsupported
+    assert {s.part for s in plan.stands} == {h.part.name for h in plan.raised}
+    assert not plan.touched

@@ -9,12 +9,19 @@ the stands. A layout is a run's layout.json (default: runs/hand-acceptance/NAME-
 git-ignored: made by tools/hand_acceptance.py), else the scenario's `solved` layout.
 
     uv run python tools/supports_acceptance.py [--scenarios simple ballrun ...] [--runs 50]
-        [--design-seed 0] [--check-seed 1] [--layout-dir runs/hand-acceptance]
+        [--design-seed 0] [--check-seed 1] [--layout-dir runs/hand-acceptance] [--controls]
+
+--controls also simulates the check runs twice more without a stand in reach, to tell what
+changes an outcome: with the stands 100 m below the layout (the same bodies, no pair with a
+moving body), and with no stands but the layout's first value 1 nm off (a change nothing
+physical can tell from none): the runs whose outcome differs from the run without stands.
 """
 
 import argparse
 import time
 from pathlib import Path
+
+import numpy as np
 
 from rgmcad.making.clearance import ClearanceSettings, check_stands, draws, plan_supports
 from rgmcad.scene.bodies import load_parts
@@ -31,6 +38,7 @@ def main() -> None:
     ap.add_argument("--design-seed", type=int, default=0)
     ap.add_argument("--check-seed", type=int, default=1)
     ap.add_argument("--layout-dir", default="runs/hand-acceptance")
+    ap.add_argument("--controls", action="store_true")
     args = ap.parse_args()
     for name in args.scenarios:
         scenario = load_scenario(f"scenarios/{name}.toml")
@@ -61,6 +69,28 @@ def main() -> None:
             print(f"  touched in draw {c.draw}: {c.touches[:3]}")
         for c in changed[:5]:
             print(f"  changed in draw {c.draw}: {c.without[0]} -> {c.with_stands[0]}")
+        if args.controls:
+            _controls(scenario, values, parts, plan.stands, checks, check)
+
+
+def _controls(scenario, values, parts, stands, checks, check) -> None:
+    """The check runs with the stands far away, and with a 1 nm nudge and no stands."""
+    without = [c.without for c in checks]
+    away = np.eye(4)
+    away[2, 3] = -100.0
+    far, _ = check_stands(scenario, values, parts, [s.moved(away) for s in stands],
+                          draws(check), baseline=without)
+    nudged = np.array(values, float)
+    nudged[0] += 1e-9
+    near, _ = check_stands(scenario, nudged, parts, (), draws(check), baseline=without)
+    n = len(checks)
+    success = sum(c.without[0] == "success" for c in checks)
+    print(f"  controls: successes without stands {success}/{n}, with them "
+          f"{sum(c.with_stands[0] == 'success' for c in checks)}/{n}, with them 100 m away "
+          f"{sum(c.with_stands[0] == 'success' for c in far)}/{n}, nudged 1 nm "
+          f"{sum(c.with_stands[0] == 'success' for c in near)}/{n}; runs whose outcome "
+          f"changed: stands {sum(not c.same for c in checks)}, stands 100 m away "
+          f"{sum(not c.same for c in far)}, layout 1 nm off {sum(not c.same for c in near)}")
 
 
 if __name__ == "__main__":
