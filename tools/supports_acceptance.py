@@ -11,13 +11,14 @@ git-ignored: made by tools/hand_acceptance.py), else the scenario's `solved` lay
     uv run python tools/supports_acceptance.py [--scenarios simple ballrun ...] [--runs 50]
         [--design-seed 0] [--check-seed 1] [--layout-dir runs/hand-acceptance] [--controls]
 
---controls also simulates the check runs twice more without a stand in reach, to tell what
+--controls also simulates the check runs three times more with no stand in reach, to tell what
 changes an outcome: with the stands 100 m below the layout (the same bodies, no pair with a
-moving body), and with no stands but the layout's first value 1 nm off (a change nothing
+moving body), and with no stands but the layout's first value 1 nm and 1 um off (changes nothing
 physical can tell from none): the runs whose outcome differs from the run without stands.
 """
 
 import argparse
+import dataclasses
 import time
 from pathlib import Path
 
@@ -80,17 +81,17 @@ def _controls(scenario, values, parts, stands, checks, check) -> None:
     away[2, 3] = -100.0
     far, _ = check_stands(scenario, values, parts, [s.moved(away) for s in stands],
                           draws(check), baseline=without)
-    nudged = np.array(values, float)
-    nudged[0] += 1e-9
-    near, _ = check_stands(scenario, nudged, parts, (), draws(check), baseline=without)
+    rows = [("no stands", [dataclasses.replace(c, with_stands=c.without) for c in checks]),
+            ("stands", checks), ("stands 100 m away", far)]
+    for label, off in (("layout 1 nm off", 1e-9), ("layout 1 um off", 1e-6)):
+        nudged = np.array(values, float)
+        nudged[0] += off
+        rows.append((label, check_stands(scenario, nudged, parts, (), draws(check),
+                                         baseline=without)[0]))
     n = len(checks)
-    success = sum(c.without[0] == "success" for c in checks)
-    print(f"  controls: successes without stands {success}/{n}, with them "
-          f"{sum(c.with_stands[0] == 'success' for c in checks)}/{n}, with them 100 m away "
-          f"{sum(c.with_stands[0] == 'success' for c in far)}/{n}, nudged 1 nm "
-          f"{sum(c.with_stands[0] == 'success' for c in near)}/{n}; runs whose outcome "
-          f"changed: stands {sum(not c.same for c in checks)}, stands 100 m away "
-          f"{sum(not c.same for c in far)}, layout 1 nm off {sum(not c.same for c in near)}")
+    print("  controls (successes / runs whose outcome differs from no stands): " + "; ".join(
+        f"{label} {sum(c.with_stands[0] == 'success' for c in runs)}/{n} "
+        f"{sum(not c.same for c in runs)}" for label, runs in rows))
 
 
 if __name__ == "__main__":
