@@ -336,19 +336,28 @@ def plan_supports(scenario: Scenario, values, parts: Mapping[str, BuiltPart],
                                          engine, cache)))
             recorder.block([site for group in groups for site in group])
         by_site, made_by = _choose_all(groups)
-        checks: list[RunCheck] = []
-        rounds = 0
-        for rounds in range(1, settings.rounds + 2):
+        # a redesign is checked on the runs that touched first, then on every run
+        everyone = list(range(len(run_draws)))
+        pending, checked, rounds = everyone, {}, 1
+        while True:
             stands = [s for group in by_site for s in group]
-            checks, touches = check_stands(scenario, values, parts, stands, run_draws,
-                                           baseline, engine, cache)
+            new, touches = check_stands(scenario, values, parts, stands,
+                                        [run_draws[k] for k in pending],
+                                        [baseline[k] for k in pending], engine, cache)
+            checked.update(zip(pending, new, strict=True))
             if not touches or rounds > settings.rounds:
-                break
+                if pending == everyone:
+                    break
+                pending = everyone  # the last stands, on every run
+                continue
             for label, _, _, point, draw in touches:
                 site = made_by[label]
                 part_pose = _part_pose(scenario, values, parts, site, draw, engine, cache)
                 site.block(point[None], part_pose)
             by_site, made_by = _choose_all(groups)
+            rounds += 1
+            pending = [k for k, c in zip(pending, new, strict=True) if c.touches]
+        checks = [checked[k] for k in everyone]
     finally:
         engine.close()
         cache.close()
