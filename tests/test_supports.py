@@ -141,6 +141,12 @@ def test_cli_supports_writes_stands_and_a_template(tmp_path):
     assert {"S1.stl", "S1-card.svg", "template.pdf", "template.svg"} <= names
     svg = (tmp_path / "template" / "template.svg").read_text()
     assert "S1 support of track" in svg  # the footprint's label on the sheets
+    from tests.test_bom import pdf_text
+
+    text = pdf_text(tmp_path / "template")  # the template `rgmcad template` makes, stands in
+    bill = next(t for t in text if "bill of materials" in t)
+    steps = "".join(t for t in text if "assembly steps" in t)
+    assert "S1" in bill and "S1" in steps and steps.index("S1") < steps.index("track")
     from rgmcad.making.stands import read_stands
 
     stands = read_stands(tmp_path / "supports.json")  # round trip

@@ -63,7 +63,7 @@ def run(args) -> int:
     plan = plan_supports(scenario, values, parts, ClearanceSettings(runs=args.runs, seed=args.seed))
     written = write_stand_files(plan.stands, out, step=not args.no_step)
     if not args.no_template:
-        written += _template(scenario, scene, name, plan.stands, out / "template")
+        written += _template(scenario, args, name, values, scene, plan.stands, out / "template")
     document = {"scenario": scenario.name, "layout": name, "seed": args.seed, **plan.to_json()}
     (out / SUPPORTS_FILE).write_text(json.dumps(document, indent=1) + "\n", encoding="utf-8")
     if args.json:
@@ -80,10 +80,14 @@ def run(args) -> int:
     return 0 if not plan.unsupported else 1
 
 
-def _template(scenario, scene, name, stands, folder) -> list:
-    """The layout's template with the stands drawn, without the making pages."""
-    from rgmcad.printing.template import scene_template
+def _template(scenario, args, name, values, scene, stands, folder) -> list:
+    """The layout's template as `rgmcad template` makes it (tolerances, bill of materials,
+    assembly steps), with the stands drawn, listed and placed in the steps."""
+    from rgmcad.printing.template import layout_notes, scene_template
 
+    notes = layout_notes(scenario, args.scenario, args.layout, values,
+                         by_value=bool(getattr(args, "value", None)))
     result = scene_template(scenario, scene, folder, title=f"{scenario.name}, layout {name}",
-                            making=False, supports=stands)
+                            tolerances=notes.tolerances, note=notes.note, push=notes.push,
+                            ball_mass=notes.ball_mass, supports=stands)
     return [result.pdf, result.svg]

@@ -52,28 +52,22 @@ def configure(p) -> None:
 
 
 def run(args) -> int:
-    from rgmcad.making.ball_mass import read_cached
-    from rgmcad.printing.template import scene_template
+    from rgmcad.printing.template import layout_notes, scene_template
     from rgmcad.scene.bodies import make_scene
-    from rgmcad.scene.layout_files import read_hand_note, read_push_against, read_tolerances
 
     t0 = time.perf_counter()
     output_dir(args.out, "--out", files=("template.pdf", "template.svg"))
     scenario = load_scenario_arg(args)
     name, values = layout_arg(scenario, args)
-    tolerances, note, push, ball_mass = {}, "", {}, None
-    if args.layout and args.layout not in scenario.layouts and not args.value:  # as optimised
-        tolerances = read_tolerances(scenario, Path(args.layout))
-        note = read_hand_note(Path(args.layout))
-        push = read_push_against(scenario, Path(args.layout))
-        ball_mass = read_cached(Path(args.layout).parent, args.scenario, values)
+    notes = layout_notes(scenario, args.scenario, args.layout, values, by_value=bool(args.value))
+    tolerances, note = notes.tolerances, notes.note
     scene = make_scene(scenario, values, load_parts_of(scenario, args))
     paper = None if args.paper == "auto" else args.paper
     try:
         result = scene_template(scenario, scene, Path(args.out), tolerances=tolerances,
                                 plane=args.plane, paper=paper, overlap_mm=args.overlap,
                                 title=f"{scenario.name}, layout {name}", note=note,
-                                push=push, ball_mass=ball_mass)
+                                push=notes.push, ball_mass=notes.ball_mass)
     except OSError as exc:
         raise UsageError(str(args.out), "--out", f"cannot write the template ({exc})") \
             from None

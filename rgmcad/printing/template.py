@@ -241,3 +241,32 @@ def scene_template(scenario, scene, out_dir, *, tolerances=None, plane: str | No
         raise
     except ValueError as exc:
         raise ScenarioError(str(scenario.path), "template", str(exc)) from None
+
+
+@dataclass(frozen=True)
+class LayoutNotes:
+    """What a layout file written by the optimiser adds to its template: the printed
+    tolerances, the cover's note on building by hand, the sides to push against, and the ball
+    mass measurement kept beside it (:func:`layout_notes`)."""
+
+    tolerances: dict
+    note: str = ""
+    push: dict | None = None
+    ball_mass: dict | None = None
+
+
+def layout_notes(scenario, scenario_path, layout: str | None, values, *, by_value: bool = False
+                 ) -> LayoutNotes:
+    """The :class:`LayoutNotes` of ``layout`` (a layout file of a run; a named layout, none or
+    one changed with ``--value`` (``by_value``) carries nothing), for ``rgmcad template`` and
+    ``rgmcad supports`` alike."""
+    from rgmcad.making.ball_mass import read_cached
+    from rgmcad.scene.layout_files import read_hand_note, read_push_against, read_tolerances
+
+    if not layout or layout in scenario.layouts or by_value:
+        return LayoutNotes({})
+    path = Path(layout)
+    return LayoutNotes(read_tolerances(scenario, path), read_hand_note(path),
+                       read_push_against(scenario, path),
+                       read_cached(path.parent, scenario_path, values))
+
