@@ -130,3 +130,20 @@ def test_a_copy_sent_to_another_process_gives_the_same_labels(problem):
     X = _points(problem, 3, seed=3)
     assert clone.simulate(X) == problem.simulate(X)
     np.testing.assert_array_equal(clone.validity(X), problem.validity(X))
+
+
+def test_exploration_in_stages_sees_the_same_scenario_through_the_run_store(tmp_path):
+    # `rgmcad optimize` hands the learner its scenario wrapped in the run store: the
+    # exploration in stages must draw there as on the scenario itself (it was silently the
+    # paper's exploration under `optimize --set exploration_staged=1`, 2026-12-08)
+    from rgmcad.learning.sampling import explore
+
+    settings = LearningSettings(n_initial=20, n_successes=40, exploration_max_iter=4,
+                                exploration_staged=1.0)
+    with scenario_problem(tmp_path) as plain, recorded_problem(tmp_path) as recorded:
+        staged = explore(plain, settings, np.random.default_rng(0)).X
+        through = explore(recorded, settings, np.random.default_rng(0)).X
+        paper = explore(plain, settings.replace(exploration_staged=0.0),
+                        np.random.default_rng(0)).X
+    np.testing.assert_array_equal(through, staged)
+    assert not np.array_equal(staged, paper)  # the stages do change the draws here

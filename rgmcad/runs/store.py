@@ -366,8 +366,8 @@ class RecordedProblem:
         self.executor = executor
         self.on_simulation = on_simulation
         self.dimension = problem.dimension
-        self.event_parents = problem.event_parents
-        self.any_joins = problem.any_joins
+        self.event_parents, self.any_joins = problem.event_parents, problem.any_joins
+        self.event_dimensions = getattr(problem, "event_dimensions", None)  # exploration in stages
         self.n_replayed = 0
         self.n_simulated = 0
         self._in_flight = 0  # batches submitted and not yet waited for
