@@ -269,4 +269,3 @@ def layout_notes(scenario, scenario_path, layout: str | None, values, *, by_valu
     return LayoutNotes(read_tolerances(scenario, path), read_hand_note(path),
                        read_push_against(scenario, path),
                        read_cached(path.parent, scenario_path, values))
-

@@ -146,36 +146,30 @@ GLANCES: dict[str, Callable[[dict[str, dict]], str]] = {
 """Globs a marker may name for one table over every file that matches."""
 
 
+UNTRACKED = "before 2026-12-08"
+"""What a file that records no revision was measured under: revisions were first recorded on
+2026-12-08."""
+
+
 def _revision(data) -> str | None:
-    """The physics revision a file records (hand-acceptance.json: per entry, the oldest)."""
+    """The physics revision a file records; for one entry per run (hand-acceptance.json), the
+    oldest of its runs', None if any run records none."""
     if "physics_revision" in data:
         return data["physics_revision"]
-    entries = [v for v in data.values() if isinstance(v, dict)]
-    revisions = [v.get("physics_revision") for v in entries]
-    if entries and "scenario" in entries[0]:
-        return None if None in revisions else min(revisions)
-    return None
+    runs = [v.get("physics_revision") for v in data.values() if isinstance(v, dict)
+            and "scenario" in v]
+    return min(runs) if runs and None not in runs else None
 
 
-def _provenance(names: list[str], revisions: list[str | None]) -> str:
-    files = ", ".join(f"`{n}`" for n in names)
-    stale = sorted({r or "before 2026-12-08" for r in revisions if r != PHYSICS_REVISION})
+def _provenance(source: str, revisions: list[str | None]) -> str:
+    """A note that ``source`` ("From `FILE`", "The figures of this section") was measured under
+    the current physics, or a warning box naming the earlier revisions it was measured under."""
+    stale = sorted({r or UNTRACKED for r in revisions if r != PHYSICS_REVISION})
     if not stale:
-        return f"\n\n*From {files}, measured under the current physics ({PHYSICS_REVISION}).*"
-    return (f"\n\n!!! warning \"Measured under earlier physics\"\n    From {files}, measured "
-            f"under the physics of {', '.join(stale)}; the simulation has changed since "
-            f"(current: {PHYSICS_REVISION}, see the engineering log): these figures are to be "
-            "measured again.")
-
-
-def _measured(match) -> str:
-    revision = match.group(1)
-    if revision == PHYSICS_REVISION:
-        return f"*Measured under the current physics ({PHYSICS_REVISION}).*"
-    return (f"!!! warning \"Measured under earlier physics\"\n    The figures of this section "
-            f"were measured under the physics of {revision}; the simulation has changed since "
-            f"(current: {PHYSICS_REVISION}, see the engineering log): they are to be measured "
-            "again.")
+        return f"*{source}, measured under the current physics ({PHYSICS_REVISION}).*"
+    return (f"!!! warning \"Measured under earlier physics\"\n    {source}, measured under the "
+            f"physics of {', '.join(stale)}; the simulation has changed since (current: "
+            f"{PHYSICS_REVISION}, see the engineering log): to be measured again.")
 
 
 def _load(path: Path) -> dict:
@@ -193,12 +187,17 @@ def fill(markdown: str, root: Path) -> str:
                 raise ValueError(f"no file matches {name}")
             data = {p.name: _load(p) for p in paths}
             names = [str(p.relative_to(root)) for p in paths]
-            return GLANCES[name](data) + _provenance(names, [_revision(d) for d in data.values()])
+            files = ", ".join(f"`{n}`" for n in names)
+            return GLANCES[name](data) + "\n\n" + _provenance(
+                f"From {files}", [_revision(d) for d in data.values()])
         maker = next((m for pattern, m in TABLES.items() if fnmatch.fnmatchcase(name, pattern)),
                      None)
         if maker is None:
             raise ValueError(f"no table is made from {name}; known: {', '.join(TABLES)}")
         data = _load(root / name)
-        return maker(data) + _provenance([name], [_revision(data)])
+        return maker(data) + "\n\n" + _provenance(f"From `{name}`", [_revision(data)])
 
-    return MEASURED.sub(_measured, MARKER.sub(table, markdown))
+    def measured(match):
+        return _provenance("The figures of this section", [match.group(1)])
+
+    return MEASURED.sub(measured, MARKER.sub(table, markdown))
